@@ -1,0 +1,287 @@
+"""The syntax tree of an .eac file: frozen dataclasses that carry their source spans.
+
+Spans are excluded from equality so two trees that differ only in layout compare equal; this is
+what lets the formatter promise ``parse(fmt(x)) == parse(x)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Union
+
+
+@dataclass(frozen=True, order=True)
+class Span:
+    """A region of a source file; lines and columns are 1-based, ``end_col`` is exclusive."""
+
+    file: str
+    line: int
+    col: int
+    end_line: int
+    end_col: int
+
+    def to(self, other: Span) -> Span:
+        """The span from the start of ``self`` to the end of ``other``."""
+        return Span(self.file, self.line, self.col, other.end_line, other.end_col)
+
+
+NO_SPAN = Span("<builtin>", 0, 0, 0, 0)
+
+
+def _span() -> Span:
+    return field(default=NO_SPAN, compare=False, repr=False)  # type: ignore[no-any-return]
+
+
+# ---- expressions --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Number:
+    """A numeric literal; ``unit`` is None for a bare number. ``text`` keeps the exact digits."""
+
+    text: str
+    unit: str | None = None
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Name:
+    id: str
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class String:
+    value: str
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Bool:
+    value: bool
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Unary:
+    op: str  # "-", "+", "not"
+    operand: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Binary:
+    op: str  # + - * / ^ and or  < <= > >= == !=
+    left: Expr
+    right: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Arg:
+    name: str | None
+    value: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Call:
+    func: str
+    args: tuple[Arg, ...]
+    span: Span = _span()
+    func_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Vector:
+    items: tuple[Expr, ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Member:
+    obj: Expr
+    field: str
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class IfExpr:
+    cond: Expr
+    then: Expr
+    orelse: Expr
+    span: Span = _span()
+
+
+Expr = Union[Number, Name, String, Bool, Unary, Binary, Call, Vector, Member, IfExpr]
+
+COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
+
+
+# ---- declarations -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TypeRef:
+    """``length``, ``vec3 length``, ``choice{"a", "b"}``; checked against known types later."""
+
+    name: str
+    unit: str | None = None
+    choices: tuple[str, ...] | None = None
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Bounds:
+    lo: Expr
+    hi: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    type: TypeRef
+    bounds: Bounds | None
+    default: Expr | None
+    help: str | None = None
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Require:
+    cond: Expr
+    message: str | None = None
+    doc: str = ""
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Let:
+    name: str
+    value: Expr
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Shape:
+    name: str
+    value: Expr
+    at: Expr | None = None
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Part:
+    name: str
+    concept: str
+    args: tuple[Arg, ...]
+    at: Expr | None = None
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+    concept_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class FreeParam:
+    """A free grasp parameter: its range may depend on the concept's parameters."""
+
+    name: str
+    lo: Expr
+    hi: Expr
+    default: Expr | None = None
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Grasp:
+    name: str
+    free: tuple[FreeParam, ...]
+    pose: Expr
+    width: Expr | None = None
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    members: tuple[Shape | Part | Grasp | Let, ...]
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    kind: str
+    parent: str
+    child: str
+    axis: Expr | None = None
+    origin: Expr | None = None
+    limits: Bounds | None = None
+    opens: int | None = None  # +1 or -1: the sense of rotation/translation that opens
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+    kind_span: Span = _span()
+    parent_span: Span = _span()
+    child_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Action:
+    """``action open = pull along hinge [opening|closing]`` or ``action p = press toward v``."""
+
+    name: str
+    verb: str
+    joint: str | None = None
+    sense: str | None = None  # "opening" / "closing" / None (the verb's default)
+    direction: Expr | None = None
+    using: tuple[str, ...] = ()
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+    verb_span: Span = _span()
+    joint_span: Span = _span()
+
+
+Member_ = Union[Param, Require, Let, Shape, Part, Link, "Joint", Grasp, Action]
+
+
+@dataclass(frozen=True)
+class Concept:
+    """A ``concept`` or a ``primitive`` (a concept whose geometry the runtime provides)."""
+
+    name: str
+    kind: str  # "concept" | "primitive"
+    members: tuple[Member_, ...]
+    doc: str = ""
+    span: Span = _span()
+    name_span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Use:
+    """``use a.b`` (every concept of module a.b) or ``use a.b.{X, Y}``."""
+
+    module: tuple[str, ...]
+    names: tuple[str, ...] | None
+    span: Span = _span()
+    name_spans: tuple[Span, ...] = field(default=(), compare=False, repr=False)
+
+
+@dataclass(frozen=True)
+class Module:
+    path: str
+    uses: tuple[Use, ...]
+    concepts: tuple[Concept, ...]

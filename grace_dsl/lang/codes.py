@@ -1,0 +1,70 @@
+"""Every diagnostic code with a one-line title; ``docs/errors.md`` documents each one.
+
+Ranges: E0xx syntax, E1xx names and imports, E2xx types, units and values, E3xx build and I/O.
+"""
+
+from __future__ import annotations
+
+CODES: dict[str, str] = {
+    # syntax
+    "E001": "unexpected character",
+    "E002": "unexpected token",
+    "E003": "unexpected end of file",
+    "E004": "expression nested too deeply",
+    "E005": "number out of range",
+    "E006": "file cannot be read",
+    # names and imports
+    "E101": "module not found",
+    "E102": "import cycle",
+    "E103": "name not found in module",
+    "E104": "duplicate concept",
+    "E105": "duplicate member name",
+    "E106": "unknown name",
+    "E107": "unknown concept",
+    "E108": "unknown link",
+    "E109": "unknown joint",
+    "E110": "unknown grasp",
+    "E111": "concept contains itself",
+    "E112": "link has more than one parent joint, or the joints form a cycle",
+    "E113": "name shadows a built-in",
+    "E114": "member not allowed here",
+    "E115": "unknown function",
+    "E116": "unknown argument",
+    "E117": "missing argument",
+    "E118": "duplicate argument",
+    "E119": "definitions depend on each other in a cycle",
+    # types, units and values
+    "E201": "unknown type",
+    "E202": "type mismatch",
+    "E203": "unit mismatch",
+    "E204": "bare number where a unit is needed",
+    "E205": "wrong number of arguments",
+    "E206": "argument of the wrong type",
+    "E207": "bound is not a constant",
+    "E208": "lower bound above upper bound",
+    "E209": "default outside its range",
+    "E210": "requirement fails at the defaults",
+    "E211": "grasp range empty at the defaults",
+    "E212": "invalid component access",
+    "E213": "vector size mismatch",
+    "E214": "condition is not a boolean",
+    "E215": "branches of `if` have different types",
+    "E216": "unknown choice",
+    "E217": "joint needs an axis",
+    "E218": "unknown joint kind",
+    "E219": "clause not allowed for this joint kind",
+    "E220": "unknown action verb",
+    "E221": "zero axis",
+    "E222": "parameter needs a default or a range",
+    "E223": "not a shape",
+    "E224": "pose expected",
+    "E225": "value is not finite at the defaults",
+    "E226": "integer parameter with a fractional value",
+    "E227": "string outside a choice comparison",
+    "E228": "square root of an odd power of length",
+    "E229": "joint range in the wrong unit",
+    "E230": "direction must be a 3-vector",
+    "E231": "gripper width must be a length",
+    # build and I/O
+    "E301": "cache or output directory not writable",
+}
