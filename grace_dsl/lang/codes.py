@@ -30,7 +30,7 @@ CODES: dict[str, str] = {
     "E114": "member not allowed here",
     "E115": "unknown function",
     "E116": "unknown argument",
-    "E117": "missing argument",
+    "E117": "argument needs a name",
     "E118": "duplicate argument",
     "E119": "definitions depend on each other in a cycle",
     # types, units and values
@@ -52,7 +52,7 @@ CODES: dict[str, str] = {
     "E216": "unknown choice",
     "E217": "joint needs an axis",
     "E218": "unknown joint kind",
-    "E219": "clause not allowed for this joint kind",
+    "E219": "joint clauses do not fit its kind",
     "E220": "unknown action verb",
     "E221": "zero axis",
     "E222": "parameter needs a default or a range",

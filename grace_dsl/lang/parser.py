@@ -382,7 +382,7 @@ class _Builder(Transformer):  # type: ignore[type-arg]
     def action_decl(self, c: list[Any]) -> ast.Action:
         docs, name, verb, rule, *rest = c
         trailing = rest.pop()
-        using = tuple(t.value for t in rest[0]) if rest and rest[0] is not None else ()
+        using = tuple(rest[0]) if rest and rest[0] is not None else ()
         joint_tok, sense, direction = rule
         return ast.Action(
             name.value,
@@ -412,8 +412,11 @@ class _Builder(Transformer):  # type: ignore[type-arg]
     def toward_rule(self, c: list[Any]) -> tuple[None, None, Any]:
         return None, None, c[0]
 
-    def action_using(self, c: list[Token]) -> list[Token]:
+    def action_using(self, c: list[str]) -> list[str]:
         return c
+
+    def grasp_ref(self, c: list[Token]) -> str:
+        return ".".join(t.value for t in c)
 
     # -- expressions
     def if_expr(self, c: list[Any]) -> ast.IfExpr:
@@ -478,7 +481,8 @@ class _Builder(Transformer):  # type: ignore[type-arg]
     def call(self, c: list[Any]) -> ast.Call:
         func, args = c
         args = tuple(args or ())
-        node = ast.Call(func.value, args, _tok_span(self.path, func), _tok_span(self.path, func))
+        span = self._span(func, args[-1]) if args else _tok_span(self.path, func)
+        node = ast.Call(func.value, args, span, _tok_span(self.path, func))
         return self._expr(node, *(a.value for a in args))
 
     def vector(self, c: list[Any]) -> ast.Vector:

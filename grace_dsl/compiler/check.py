@@ -1,0 +1,871 @@
+"""Check pass: types, units, ranges and values at the defaults.
+
+Every expression gets a type (recorded in a table keyed by node identity for lowering).  Then the
+concept is evaluated at its defaults with the NumPy backend: bounds ordered, defaults inside their
+ranges, every ``require`` true, every grasp range non-empty, every value finite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from grace_dsl.compiler import types as T
+from grace_dsl.compiler.backends import NUMPY, literal_value
+from grace_dsl.compiler.evaluate import BUILTINS, Evaluator
+from grace_dsl.compiler.resolve import Program, flat_members
+from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
+from grace_dsl.lang import ast
+from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
+
+ERR = Type("error")
+JOINT_KINDS = ("revolute", "prismatic", "continuous", "fixed")
+VERBS = {  # verb -> default sense along a joint
+    "pull": "opening", "push": "closing", "lift": "opening", "lower": "closing",
+    "press": "closing", "turn": "opening", "rotate": "opening", "slide": "opening",
+    "open": "opening", "close": "closing",
+}
+SET_OPS = ("union", "difference")
+
+
+@dataclass(frozen=True)
+class TE:
+    """A typed expression: its type and, for unit-less literal arithmetic, its constant value."""
+
+    type: Type
+    const: Any = None  # float or tuple of floats; None when not a bare constant
+
+
+@dataclass
+class CheckedConcept:
+    decl: ast.Concept
+    file: str
+    param_types: dict[str, Type]
+    free_types: dict[str, dict[str, Type]]
+    defaults: dict[str, Any] = field(default_factory=dict)  # SI values at the defaults
+    bounds: dict[str, tuple[Any, Any]] = field(default_factory=dict)
+    ok: bool = True
+
+
+@dataclass
+class Checked:
+    program: Program
+    types: dict[int, Type]
+    concepts: dict[str, CheckedConcept]
+
+
+def check(prog: Program) -> tuple[Checked, list[Diagnostic]]:
+    """Type-check every concept of the program and evaluate it at its defaults."""
+    types: dict[int, Type] = {}
+    diags: list[Diagnostic] = []
+    concepts = {}
+    for name, entry in prog.concepts.items():
+        checker = _ConceptChecker(prog, entry.decl, entry.file, types)
+        concepts[name] = checker.run()
+        diags += checker.diags
+    return Checked(prog, types, concepts), diags
+
+
+def names_in(e: ast.Expr) -> Iterator[ast.Name]:
+    """Every name an expression mentions, without recursion."""
+    stack: list[Any] = [e]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.Name):
+            yield node
+        elif isinstance(node, ast.Unary):
+            stack.append(node.operand)
+        elif isinstance(node, ast.Binary):
+            stack += [node.left, node.right]
+        elif isinstance(node, ast.Call):
+            stack += [a.value for a in node.args]
+        elif isinstance(node, ast.Vector):
+            stack += list(node.items)
+        elif isinstance(node, ast.Member):
+            stack.append(node.obj)
+        elif isinstance(node, ast.IfExpr):
+            stack += [node.cond, node.then, node.orelse]
+
+
+def _fmt(value: float, dim: Dim) -> str:
+    if dim == LENGTH:
+        return f"{value * 1000:g}mm"
+    if dim == ANGLE:
+        return f"{np.degrees(value):g}deg"
+    return f"{value:g}"
+
+
+class _ConceptChecker:
+    def __init__(self, prog: Program, decl: ast.Concept, file: str, types: dict[int, Type]):
+        self.prog, self.decl, self.file, self.types = prog, decl, file, types
+        self.diags: list[Diagnostic] = []
+        self.dropped = prog.dropped(file)
+        self.members = {getattr(m, "name", None): m for m in flat_members(decl)}
+        self.params = {m.name: m for m in decl.members if isinstance(m, ast.Param)}
+        self.param_types = {n: self._param_type(p) for n, p in self.params.items()}
+        self.lets = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Let)}
+        self.let_types: dict[str, Type] = {}
+        self.visiting: list[str] = []
+        self.scope: dict[str, Type] = {}  # free grasp parameters while checking a grasp
+        self.shape_names: set[str] = set()
+        self.free_types: dict[str, dict[str, Type]] = {}
+
+    def err(self, code: str, msg: str, span: ast.Span, hint: str | None = None) -> None:
+        self.diags.append(error(code, msg, span, hint))
+
+    # ---- driver ---------------------------------------------------------------------------------
+    def run(self) -> CheckedConcept:
+        for m in self.decl.members:
+            self._member(m)
+        result = CheckedConcept(self.decl, self.file, self.param_types, self.free_types)
+        result.ok = not self.diags
+        if result.ok:
+            self._check_values(result)
+            result.ok = not self.diags
+        return result
+
+    def _member(self, m: ast.Member_) -> None:
+        if isinstance(m, ast.Param):
+            self._param(m)
+        elif isinstance(m, ast.Require):
+            self._expect_bool(self.expr(m.cond), m.cond.span)
+        elif isinstance(m, ast.Let):
+            self._let_type(m.name)
+        elif isinstance(m, ast.Shape):
+            self._shape(m)
+        elif isinstance(m, ast.Part):
+            self._part(m)
+        elif isinstance(m, ast.Link):
+            for sub in m.members:
+                self._member(sub)
+        elif isinstance(m, ast.Joint):
+            self._joint(m)
+        elif isinstance(m, ast.Grasp):
+            self._grasp(m)
+        elif isinstance(m, ast.Action):
+            self._action(m)
+
+    # ---- parameters -----------------------------------------------------------------------------
+    def _param_type(self, p: ast.Param) -> Type:
+        ref = p.type
+        if ref.choices is not None and len(set(ref.choices)) != len(ref.choices):
+            self.err("E202", "a choice lists the same option twice", ref.span)
+        t = declared_type(ref)
+        if t is None:
+            shown = ref.name + (f" {ref.unit}" if ref.unit else "")
+            hint = did_you_mean(ref.name, T.TYPE_NAMES) or "types: " + ", ".join(T.TYPE_NAMES)
+            if ref.name in T.VECTOR_TYPES:
+                hint = "a vector's unit is length, angle or scalar: `vec3 length`"
+            self.err("E201", f"unknown type `{shown}`", ref.span, hint)
+            return ERR
+        return t
+
+    def _param(self, p: ast.Param) -> None:
+        t = self.param_types[p.name]
+        if p.bounds is not None:
+            if t.kind in ("bool", "choice"):
+                self.err("E202", f"a {t.kind} parameter takes no range", p.bounds.span)
+            else:
+                for bound in (p.bounds.lo, p.bounds.hi):
+                    self._constant(bound, "a parameter's bound")
+                    self.coerce(self.expr(bound), t, bound.span)
+        if p.default is not None:
+            self._constant(p.default, "a parameter's default")
+            self.coerce(self.expr(p.default), t, p.default.span)
+        elif p.bounds is None and t.kind not in ("bool", "choice"):
+            self.err("E222", f"parameter `{p.name}` has neither a default nor a range",
+                     p.name_span, "add `= value` or `in [lo, hi]` (the default is then the middle)")
+        elif t.kind == "choice" and p.default is None:
+            self.err("E222", f"choice parameter `{p.name}` needs a default", p.name_span,
+                     f'add `= "{t.choices[0]}"`')
+
+    def _constant(self, e: ast.Expr, what: str) -> None:
+        for n in names_in(e):
+            if n.id in self.param_types or n.id in self.lets:
+                self.err("E207", f"{what} must be a constant, but it uses `{n.id}`", n.span,
+                         "ranges and defaults of parameters are fixed numbers; relate "
+                         "parameters with `require`")
+                return
+
+    # ---- declarations ---------------------------------------------------------------------------
+    def _let_type(self, name: str) -> Type:
+        if name in self.let_types:
+            return self.let_types[name]
+        let = self.lets[name]
+        if name in self.visiting:
+            cycle = " -> ".join([*self.visiting[self.visiting.index(name):], name])
+            self.err("E119", f"`{name}` is defined in terms of itself: {cycle}", let.name_span)
+            self.let_types[name] = ERR
+            return ERR
+        self.visiting.append(name)
+        saved, self.scope = self.scope, {}
+        t = self.expr(let.value).type
+        self.scope = saved
+        self.visiting.pop()
+        self.let_types[name] = t
+        return t
+
+    def _shape(self, s: ast.Shape) -> None:
+        v = s.value
+        if isinstance(v, ast.Call) and v.func in SET_OPS:
+            if len(v.args) < 2:
+                self.err("E205", f"`{v.func}` takes two or more shapes", v.span)
+            for a in v.args:
+                if not (isinstance(a.value, ast.Name) and a.value.id in self.shape_names):
+                    self.err("E223", f"`{v.func}` combines shapes declared above", a.value.span,
+                             did_you_mean(getattr(a.value, "id", ""), self.shape_names))
+                self.types[id(a.value)] = T.SHAPE
+        elif isinstance(v, ast.Call) and self._primitive(v.func) is not None:
+            prim = self._primitive(v.func)
+            assert prim is not None
+            self._named_args(v.args, prim, v.func_span, "primitive")
+        else:
+            func = v.func if isinstance(v, ast.Call) else None
+            prims = [n for n, f in self.prog.visible.get(self.file, {}).items()
+                     if self.prog.concepts[n].decl.kind == "primitive"]
+            hint = did_you_mean(func, prims) if func else None
+            if func and func in self.prog.concepts:
+                hint = f"`{func}` is a concept: place it with `part {s.name} = {func}(...)`"
+            self.err("E223", "a shape is a primitive such as `Cuboid(size: ...)`, or "
+                     "`union(a, b)` / `difference(a, b)` of shapes", v.span,
+                     hint or "import primitives with `use primitives.{...}`")
+        if s.at is not None:
+            self._expect_pose(s.at)
+        self.shape_names.add(s.name)
+
+    def _primitive(self, name: str) -> ast.Concept | None:
+        file = self.prog.visible.get(self.file, {}).get(name)
+        if file is None:
+            return None
+        decl = self.prog.concepts[name].decl
+        return decl if decl.kind == "primitive" else None
+
+    def _part(self, p: ast.Part) -> None:
+        entry = self.prog.concepts.get(p.concept)
+        if entry is not None and p.concept in self.prog.visible.get(self.file, {}):
+            self._named_args(p.args, entry.decl, p.concept_span, "concept")
+        if p.at is not None:
+            self._expect_pose(p.at)
+
+    def _named_args(self, args: tuple[ast.Arg, ...], target: ast.Concept, span: ast.Span,
+                    what: str) -> None:
+        params = {m.name: m for m in target.members if isinstance(m, ast.Param)}
+        seen: set[str] = set()
+        for a in args:
+            te = self.expr(a.value)
+            if a.name is None:
+                self.err("E117", f"arguments of a {what} are named", a.span,
+                         f"write `name: value`; `{target.name}` has "
+                         + ", ".join(params) if params else None)
+                continue
+            if a.name in seen:
+                self.err("E118", f"argument `{a.name}` is given twice", a.span)
+            seen.add(a.name)
+            if a.name not in params:
+                self.err("E116", f"`{target.name}` has no parameter `{a.name}`", a.span,
+                         did_you_mean(a.name, params))
+                continue
+            expected = declared_type(params[a.name].type)
+            if expected is not None:
+                self.coerce(te, expected, a.value.span)
+
+    def _joint(self, j: ast.Joint) -> None:
+        if j.kind not in JOINT_KINDS:
+            self.err("E218", f"unknown joint kind `{j.kind}`", j.kind_span,
+                     did_you_mean(j.kind, JOINT_KINDS) or "kinds: " + ", ".join(JOINT_KINDS))
+            return
+        moving = j.kind != "fixed"
+        if moving and j.axis is None:
+            self.err("E217", f"a {j.kind} joint needs an `axis (x, y, z)`", j.span)
+        if not moving and (j.axis is not None or j.limits is not None):
+            self.err("E219", "a fixed joint takes no axis or range", j.span)
+        if j.kind == "continuous" and j.limits is not None:
+            self.err("E219", "a continuous joint turns freely and takes no range", j.limits.span,
+                     "use a revolute joint for a limited rotation")
+        if j.kind in ("revolute", "prismatic") and j.limits is None:
+            self.err("E219", f"a {j.kind} joint needs a `range [closed, open]`", j.span)
+        if j.axis is not None:
+            te = self.expr(j.axis)
+            if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
+                self.err("E230", f"a joint axis is a 3-vector, not {te.type}", j.axis.span)
+        if j.origin is not None:
+            self.coerce(self.expr(j.origin), T.vec(3, LENGTH), j.origin.span)
+        if j.limits is not None and j.kind in ("revolute", "prismatic"):
+            unit = ANGLE if j.kind == "revolute" else LENGTH
+            for bound in (j.limits.lo, j.limits.hi):
+                te = self.expr(bound)
+                if te.type.kind == "num" and te.type.dim not in (unit, SCALAR):
+                    self.err("E229", f"a {j.kind} joint's range is in {unit}s, not {te.type}",
+                             bound.span)
+                else:
+                    self.coerce(te, T.num(unit), bound.span)
+
+    def _grasp(self, g: ast.Grasp) -> None:
+        self.scope = {}
+        free: dict[str, Type] = {}
+        for fp in g.free:
+            lo, hi = self.expr(fp.lo), self.expr(fp.hi)
+            t = self._unify(lo, hi, fp.span, "bounds of a grasp parameter")
+            if fp.default is not None:
+                self.coerce(self.expr(fp.default), t, fp.default.span)
+            if fp.name in free or fp.name in self.members:
+                self.err("E105", f"`{fp.name}` is already defined", fp.span)
+            free[fp.name] = t
+            self.scope[fp.name] = t
+        self._expect_pose(g.pose)
+        if g.width is not None:
+            te = self.expr(g.width)
+            if te.type.kind != "num" or te.type.dim != LENGTH and te.const != 0:
+                if te.type is not ERR:
+                    self.err("E231", f"the gripper width is a length, not {te.type}",
+                             g.width.span, "e.g. `width r_out - r_in` or `width 30mm`")
+        self.free_types[g.name] = free
+        self.scope = {}
+
+    def _action(self, a: ast.Action) -> None:
+        if a.verb not in VERBS:
+            self.err("E220", f"unknown action verb `{a.verb}`", a.verb_span,
+                     did_you_mean(a.verb, VERBS) or "verbs: " + ", ".join(VERBS))
+        joint = self.members.get(a.joint) if a.joint else None
+        if isinstance(joint, ast.Joint) and joint.kind == "fixed":
+            self.err("E219", f"`{a.joint}` is fixed: nothing moves along it", a.joint_span)
+        if a.direction is not None:
+            te = self.expr(a.direction)
+            if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
+                self.err("E230", f"a force direction is a 3-vector, not {te.type}",
+                         a.direction.span)
+
+    # ---- coercion helpers -----------------------------------------------------------------------
+    def coerce(self, te: TE, want: Type, span: ast.Span) -> None:
+        got = te.type
+        if ERR in (got, want) or got == want:
+            return
+        if got.kind == "string":
+            if want.kind == "choice":
+                assert isinstance(te.const, str)
+                if te.const not in want.choices:
+                    self.err("E216", f'"{te.const}" is not one of {want}', span,
+                             did_you_mean(te.const, want.choices))
+                return
+            self.err("E227", "a string can only be a choice's value", span)
+            return
+        if got.kind == want.kind and got.kind in ("num", "vec") and got.size == want.size:
+            if want.integer and te.const is not None:
+                return
+            if _is_zero(te.const) or (got.dim == SCALAR and want.dim == SCALAR):
+                return
+            if te.const is not None and got.dim == SCALAR:
+                unit = "mm" if want.dim == LENGTH else "deg" if want.dim == ANGLE else ""
+                example = _example(te.const, unit)
+                self.err("E204", f"a bare number where {_a(want)} is needed", span,
+                         f"write the unit: `{example}`" if unit else None)
+                return
+            self.err("E203", f"expected {_a(want)}, found {_a(got)}", span)
+            return
+        if got.kind == "vec" and want.kind == "vec":
+            self.err("E213", f"expected a {want}, found a {got}", span)
+            return
+        self.err("E202", f"expected {_a(want)}, found {_a(got)}", span)
+
+    def _unify(self, a: TE, b: TE, span: ast.Span, what: str) -> Type:
+        """The common type of two operands that must agree (+, -, comparisons, branches)."""
+        ta, tb = a.type, b.type
+        if ERR in (ta, tb):
+            return ERR
+        if ta == tb:
+            return ta
+        if ta.kind == tb.kind and ta.kind in ("num", "vec") and ta.size == tb.size:
+            if _is_zero(a.const):
+                return tb
+            if _is_zero(b.const):
+                return ta
+            bare, other = (a, tb) if a.const is not None else (b, ta) if b.const is not None else (
+                None, None)
+            if bare is not None and bare.type.dim == SCALAR and other is not None:
+                if other.dim in (LENGTH, ANGLE):
+                    unit = "mm" if other.dim == LENGTH else "deg"
+                    self.err("E204", f"a bare number in {what} with {_a(T.num(other.dim))}", span,
+                             f"write the unit, e.g. `{_example(bare.const, unit)}`")
+                    return ERR
+            if ta.integer != tb.integer and ta.dim == tb.dim:
+                return T.num(ta.dim) if ta.kind == "num" else T.vec(ta.size, ta.dim)
+            self.err("E203", f"{what} mixes {_a(ta)} and {_a(tb)}", span)
+            return ERR
+        if ta.kind == "vec" and tb.kind == "vec":
+            self.err("E213", f"{what} mixes a {ta} and a {tb}", span)
+            return ERR
+        self.err("E202", f"{what} mixes {_a(ta)} and {_a(tb)}", span)
+        return ERR
+
+    def _expect_bool(self, te: TE, span: ast.Span) -> None:
+        if te.type not in (T.BOOL, ERR):
+            self.err("E214", f"a condition must be true or false, not {_a(te.type)}", span,
+                     "compare it, e.g. `x > 0`")
+
+    def _expect_pose(self, e: ast.Expr) -> None:
+        te = self.expr(e)
+        if te.type.kind not in ("pose", "rot", "error"):
+            self.err("E224", f"expected a pose, found {_a(te.type)}", e.span,
+                     "build poses with trans(x, y, z), rotx/roty/rotz(a), rpy(r, p, y) and `*`")
+
+    # ---- expressions ----------------------------------------------------------------------------
+    def expr(self, e: ast.Expr) -> TE:
+        te = self._expr(e)
+        self.types[id(e)] = te.type
+        return te
+
+    def _expr(self, e: ast.Expr) -> TE:
+        if isinstance(e, ast.Number):
+            if e.unit is None:
+                return TE(T.num(), float(e.text))
+            return TE(T.num(T.UNIT_FACTORS[e.unit][0]))
+        if isinstance(e, ast.String):
+            return TE(T.STRING, e.value)
+        if isinstance(e, ast.Bool):
+            return TE(T.BOOL)
+        if isinstance(e, ast.Name):
+            return TE(self._name(e))
+        if isinstance(e, ast.Vector):
+            return self._vector(e)
+        if isinstance(e, ast.Member):
+            return self._member_access(e)
+        if isinstance(e, ast.IfExpr):
+            self._expect_bool(self.expr(e.cond), e.cond.span)
+            a, b = self.expr(e.then), self.expr(e.orelse)
+            t = self._unify(a, b, e.span, "the branches of `if`")
+            if t is ERR and a.type.kind != b.type.kind and ERR not in (a.type, b.type):
+                self.diags[-1] = error("E215", f"`if` gives {_a(a.type)} in one branch and "
+                                       f"{_a(b.type)} in the other", e.span)
+            return TE(t)
+        if isinstance(e, ast.Unary):
+            return self._unary(e)
+        if isinstance(e, ast.Binary):
+            return self._binary(e)
+        assert isinstance(e, ast.Call)
+        return self._call(e)
+
+    def _name(self, e: ast.Name) -> Type:
+        if e.id in self.scope:
+            return self.scope[e.id]
+        if e.id in self.param_types:
+            return self.param_types[e.id]
+        if e.id in self.lets:
+            return self._let_type(e.id)
+        if e.id == "pi":
+            return T.num(ANGLE)
+        if e.id in self.dropped:
+            return ERR
+        if e.id in self.members:
+            kind = type(self.members[e.id]).__name__.lower()
+            self.err("E202", f"`{e.id}` is a {kind}, not a value", e.span)
+            return ERR
+        known = [*self.scope, *self.param_types, *self.lets, "pi"]
+        self.err("E106", f"unknown name `{e.id}`", e.span, did_you_mean(e.id, known))
+        return ERR
+
+    def _vector(self, e: ast.Vector) -> TE:
+        items = [self.expr(x) for x in e.items]
+        if len(items) > 3:
+            self.err("E213", f"vectors have 2 or 3 components, not {len(items)}", e.span)
+            return TE(ERR)
+        if any(i.type.kind != "num" for i in items):
+            bad = next(i for i in items if i.type.kind != "num")
+            if bad.type is not ERR:
+                self.err("E202", f"a vector's components are numbers, not {_a(bad.type)}",
+                         e.span)
+            return TE(ERR)
+        t = items[0]
+        for other in items[1:]:
+            common = self._unify(t, other, e.span, "a vector")
+            t = TE(common, t.const if _is_zero(other.const) else None)
+        if t.type is ERR:
+            return TE(ERR)
+        consts = tuple(i.const for i in items)
+        const = consts if all(c is not None for c in consts) else None
+        return TE(T.vec(len(items), t.type.dim), const)
+
+    def _member_access(self, e: ast.Member) -> TE:
+        part = self.members.get(e.obj.id) if isinstance(e.obj, ast.Name) else None
+        if isinstance(part, ast.Part):
+            return TE(self._part_param(part, e))
+        te = self.expr(e.obj)
+        t = te.type
+        if t is ERR:
+            return TE(ERR)
+        fields = "xyz"[: t.size] if t.kind == "vec" else ""
+        if e.field not in fields or len(e.field) != 1:
+            where = f"a {t}" if t.kind == "vec" else _a(t)
+            self.err("E212", f"`.{e.field}` is not a component of {where}", e.span,
+                     f"components: {', '.join('.' + f for f in fields)}" if fields else None)
+            return TE(ERR)
+        const = te.const["xyz".index(e.field)] if isinstance(te.const, tuple) else None
+        return TE(T.num(t.dim), const)
+
+    def _part_param(self, part: ast.Part, e: ast.Member) -> Type:
+        """``handle.r_in``: a parameter of a part, as bound by its arguments or lifted."""
+        self.types[id(e.obj)] = ERR
+        entry = self.prog.concepts.get(part.concept)
+        if entry is None:
+            return ERR
+        params = {m.name: m for m in entry.decl.members if isinstance(m, ast.Param)}
+        if e.field not in params:
+            self.err("E212", f"part `{part.name}` ({part.concept}) has no parameter `{e.field}`",
+                     e.span, did_you_mean(e.field, params))
+            return ERR
+        return declared_type(params[e.field].type) or ERR
+
+    def _unary(self, e: ast.Unary) -> TE:
+        te = self.expr(e.operand)
+        if e.op == "not":
+            self._expect_bool(te, e.operand.span)
+            return TE(T.BOOL)
+        if te.type.kind not in ("num", "vec", "error"):
+            self.err("E202", f"cannot negate {_a(te.type)}", e.span)
+            return TE(ERR)
+        return TE(te.type, _neg(te.const) if e.op == "-" else te.const)
+
+    def _binary(self, e: ast.Binary) -> TE:
+        a, b = self.expr(e.left), self.expr(e.right)
+        ta, tb = a.type, b.type
+        if e.op in ("and", "or"):
+            self._expect_bool(a, e.left.span)
+            self._expect_bool(b, e.right.span)
+            return TE(T.BOOL)
+        if ERR in (ta, tb):
+            return TE(ERR)
+        if e.op in ast.COMPARISONS:
+            return self._comparison(e, a, b)
+        if "string" in (ta.kind, tb.kind):
+            self.err("E227", "strings can only be compared with a choice parameter", e.span)
+            return TE(ERR)
+        if e.op in ("+", "-"):
+            t = self._unify(a, b, e.span, f"`{e.op}`")
+            if ta.kind not in ("num", "vec") and t is not ERR:
+                self.err("E202", f"cannot add or subtract {_a(ta)}", e.span,
+                         "compose poses with `*`")
+                return TE(ERR)
+            const = _arith(e.op, a.const, b.const)
+            return TE(t, const)
+        if e.op == "^":
+            return self._power(e, a, b)
+        if e.op == "/":
+            if tb.kind != "num" or ta.kind not in ("num", "vec"):
+                self.err("E202", f"cannot divide {_a(ta)} by {_a(tb)}", e.span)
+                return TE(ERR)
+            return TE(Type(ta.kind, T.div_dim(ta.dim, tb.dim), ta.size), _arith("/", a.const,
+                                                                                 b.const))
+        return self._product(e, a, b)
+
+    def _comparison(self, e: ast.Binary, a: TE, b: TE) -> TE:
+        ta, tb = a.type, b.type
+        if "string" in (ta.kind, tb.kind) or "choice" in (ta.kind, tb.kind):
+            choice, text = (ta, b) if tb.kind == "string" else (tb, a)
+            if choice.kind != "choice" or text.type.kind != "string" or e.op not in ("==", "!="):
+                self.err("E227", "compare a choice parameter with one of its options, e.g. "
+                         '`side == "left"`', e.span)
+                return TE(ERR)
+            self.coerce(text, choice, e.span)
+            return TE(T.BOOL)
+        if ta.kind == "bool" and tb.kind == "bool" and e.op in ("==", "!="):
+            return TE(T.BOOL)
+        if ta.kind != "num" or tb.kind != "num":
+            self.err("E202", f"cannot compare {_a(ta)} with {_a(tb)}", e.span,
+                     "compare components, e.g. `v.x < 1mm`" if "vec" in (ta.kind, tb.kind)
+                     else None)
+            return TE(ERR)
+        self._unify(a, b, e.span, f"`{e.op}`")
+        return TE(T.BOOL)
+
+    def _power(self, e: ast.Binary, a: TE, b: TE) -> TE:
+        if a.type.kind != "num" or b.type.kind != "num" or b.type.dim != SCALAR:
+            self.err("E202", "`^` raises a number to a unit-less power", e.span)
+            return TE(ERR)
+        if a.type.dim == SCALAR:
+            return TE(T.num(), _arith("^", a.const, b.const))
+        if b.const is None or float(b.const) != int(b.const):
+            self.err("E202", f"a {a.type} can only be raised to a whole constant power",
+                     e.right.span)
+            return TE(ERR)
+        n = int(b.const)
+        return TE(T.num(Dim(a.type.dim.length * n, a.type.dim.angle and n == 1)))
+
+    def _product(self, e: ast.Binary, a: TE, b: TE) -> TE:
+        ta, tb = a.type, b.type
+        if ta.kind == "num" and tb.kind in ("num", "vec"):
+            return TE(Type(tb.kind, T.mul_dim(ta.dim, tb.dim), tb.size), _arith("*", a.const,
+                                                                                b.const))
+        if tb.kind == "num" and ta.kind == "vec":
+            return TE(Type("vec", T.mul_dim(ta.dim, tb.dim), ta.size), _arith("*", a.const,
+                                                                               b.const))
+        if ta.kind in ("rot", "pose") and tb.kind == "vec":
+            if tb.size != 3:
+                self.err("E213", f"a {ta} acts on 3-vectors, not on a {tb}", e.span)
+                return TE(ERR)
+            if ta.kind == "pose" and tb.dim != LENGTH and not _is_zero(b.const):
+                self.err("E203", "a pose moves points (lengths); rotate directions with a "
+                         "rotation", e.span)
+                return TE(ERR)
+            return TE(tb)
+        if ta.kind in ("rot", "pose") and tb.kind in ("rot", "pose"):
+            return TE(T.ROT if ta.kind == tb.kind == "rot" else T.POSE)
+        hint = "use dot(a, b) or cross(a, b)" if ta.kind == tb.kind == "vec" else None
+        self.err("E202", f"cannot multiply {_a(ta)} by {_a(tb)}", e.span, hint)
+        return TE(ERR)
+
+    def _call(self, e: ast.Call) -> TE:
+        args = [self.expr(a.value) for a in e.args]
+        for a in e.args:
+            if a.name is not None:
+                self.err("E116", f"`{e.func}` takes positional arguments", a.span)
+                return TE(ERR)
+        if e.func not in BUILTINS:
+            hint = did_you_mean(e.func, BUILTINS)
+            if e.func in self.prog.concepts:
+                hint = "concepts and primitives are placed with `part` or `shape`, not called"
+            self.err("E115", f"unknown function `{e.func}`", e.func_span, hint)
+            return TE(ERR)
+        if any(a.type is ERR for a in args):
+            return TE(ERR)
+        return TE(_builtin_type(self, e, args))
+
+    # ---- values at the defaults -----------------------------------------------------------------
+    def _check_values(self, out: CheckedConcept) -> None:
+        with np.errstate(all="ignore"):
+            self._check_param_values(out)
+            if self.diags:
+                return
+            ev = Evaluator(NUMPY, self.types, dict(out.defaults), self._lazy_let(out))
+            for m in flat_members(self.decl):
+                self._check_member_values(m, ev)
+
+    def _lazy_let(self, out: CheckedConcept) -> Any:
+        def value(name: str) -> Any:
+            ev = Evaluator(NUMPY, self.types, out.defaults, value)
+            return ev(self.lets[name].value)
+        return value
+
+    def _check_param_values(self, out: CheckedConcept) -> None:
+        ev = Evaluator(NUMPY, self.types, {})
+        for name, p in self.params.items():
+            t = self.param_types[name]
+            lo = hi = None
+            if p.bounds is not None:
+                lo, hi = ev(p.bounds.lo), ev(p.bounds.hi)
+                if np.any(np.asarray(lo) > np.asarray(hi)):
+                    self.err("E208", f"the range of `{name}` is empty: its lower bound is above "
+                             "its upper bound", p.bounds.span)
+                    continue
+                out.bounds[name] = (lo, hi)
+            if p.default is not None:
+                value = ev(p.default)
+                if t.kind == "choice":
+                    value = float(t.choices.index(value))
+                elif t.kind == "bool":
+                    value = float(bool(value))
+            elif p.bounds is not None:
+                value = (np.asarray(lo) + np.asarray(hi)) / 2
+                value = tuple(value) if t.kind == "vec" else float(value)
+            else:
+                continue
+            if t.integer and float(value) != int(value):
+                span = p.default.span if p.default is not None else p.name_span
+                self.err("E226", f"`{name}` is an int, but its default is {float(value):g}", span)
+            if lo is not None and (np.any(np.asarray(value) < np.asarray(lo))
+                                   or np.any(np.asarray(value) > np.asarray(hi))):
+                assert p.default is not None and p.bounds is not None
+                self.err("E209", f"the default of `{name}` lies outside its range",
+                         p.default.span, f"the range is [{_fmt_any(lo, t.dim)}, "
+                         f"{_fmt_any(hi, t.dim)}]")
+            out.defaults[name] = value
+
+    def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
+        if isinstance(m, ast.Require):
+            if not bool(ev(m.cond)):
+                used = sorted({n.id for n in names_in(m.cond)} & set(ev.env) - {"pi"})
+                shown = ", ".join(f"{n} = {_fmt_any(ev.env[n], self._dim(n))}" for n in used)
+                self.err("E210", "this requirement is false at the defaults"
+                         + (f" ({m.message})" if m.message else ""), m.cond.span,
+                         f"at the defaults {shown}" if shown else None)
+        elif isinstance(m, ast.Let):
+            self._finite(ev(m.value), m.value.span, f"`{m.name}`")
+        elif isinstance(m, ast.Joint) and m.axis is not None:
+            axis = np.asarray(ev(m.axis), dtype=float)
+            if not np.any(axis):
+                self.err("E221", f"the axis of joint `{m.name}` is the zero vector", m.axis.span)
+        elif isinstance(m, ast.Grasp):
+            self._check_grasp_values(m, ev)
+
+    def _check_grasp_values(self, g: ast.Grasp, ev: Evaluator) -> None:
+        free = {}
+        for fp in g.free:
+            lo, hi = ev(fp.lo), ev(fp.hi)
+            if not lo <= hi:
+                dim = self.free_types[g.name][fp.name].dim
+                self.err("E211", f"the range of `{fp.name}` is empty at the defaults "
+                         f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])", fp.span)
+                return
+            free[fp.name] = ev(fp.default) if fp.default is not None else (lo + hi) / 2
+        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy)
+        self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
+        if g.width is not None:
+            self._finite(sub(g.width), g.width.span, f"the width of grasp `{g.name}`")
+
+    def _finite(self, value: Any, span: ast.Span, what: str) -> None:
+        if isinstance(value, str):
+            return
+        arr = np.asarray(value, dtype=float)
+        if not np.all(np.isfinite(arr)):
+            self.err("E225", f"{what} is not a finite number at the defaults", span,
+                     "look for a division by zero or the square root of a negative number")
+
+    def _dim(self, name: str) -> Dim:
+        t = self.param_types.get(name) or self.let_types.get(name) or T.num()
+        return t.dim
+
+
+def declared_type(ref: ast.TypeRef) -> Type | None:
+    """The type a parameter declaration names, or None when it names no type."""
+    if ref.name == "choice" and ref.choices is not None:
+        return Type("choice", choices=ref.choices)
+    return T.param_type(ref.name, ref.unit)
+
+
+def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
+    """The result type of a built-in call, reporting arity and argument errors."""
+    f, n = e.func, len(args)
+    arity = {"atan2": (2,), "min": (2,), "max": (2,), "clamp": (3,), "dot": (2,), "cross": (2,),
+             "rpy": (3,), "axis_angle": (2,), "trans": (1, 3)}.get(f, (1,))
+    if n not in arity:
+        want = " or ".join(map(str, arity))
+        c.err("E205", f"`{f}` takes {want} argument{'s' if arity != (1,) else ''}, not {n}",
+              e.span)
+        return ERR
+    kinds = [a.type.kind for a in args]
+
+    def bad(i: int, want: str) -> Type:
+        c.err("E206", f"argument {i + 1} of `{f}` must be {want}, not {_a(args[i].type)}",
+              e.args[i].span)
+        return ERR
+
+    def angle_like(i: int) -> bool:
+        return kinds[i] == "num" and args[i].type.dim in (ANGLE, SCALAR)
+
+    if f in ("sin", "cos", "tan"):
+        return T.num() if angle_like(0) else bad(0, "an angle")
+    if f in ("rotx", "roty", "rotz"):
+        return T.ROT if angle_like(0) else bad(0, "an angle")
+    if f == "rpy":
+        for i in range(3):
+            if not angle_like(i):
+                return bad(i, "an angle")
+        return T.ROT
+    if f in ("asin", "acos"):
+        return T.num(ANGLE) if kinds[0] == "num" and args[0].type.dim == SCALAR else bad(
+            0, "a unit-less number")
+    if f == "atan2":
+        if kinds != ["num", "num"]:
+            return bad(0 if kinds[0] != "num" else 1, "a number")
+        c._unify(args[0], args[1], e.span, "`atan2`")
+        return T.num(ANGLE)
+    if f == "sqrt":
+        if kinds[0] != "num":
+            return bad(0, "a number")
+        d = args[0].type.dim
+        if d.length % 2 or d.angle:
+            c.err("E228", f"the square root of a {d} has no unit here", e.span,
+                  "square roots take unit-less numbers or areas (length^2)")
+            return ERR
+        return T.num(Dim(d.length // 2))
+    if f == "abs":
+        return args[0].type if kinds[0] in ("num", "vec") else bad(0, "a number or vector")
+    if f in ("min", "max", "clamp"):
+        if any(k != "num" for k in kinds):
+            return bad(kinds.index(next(k for k in kinds if k != "num")), "a number")
+        t = args[0].type
+        for i in range(1, n):
+            t = c._unify(TE(t), args[i], e.span, f"`{f}`")
+        return t
+    if f in ("dot", "cross"):
+        for i in range(2):
+            if kinds[i] != "vec" or (f == "cross" and args[i].type.size != 3):
+                return bad(i, "a 3-vector" if f == "cross" else "a vector")
+        if args[0].type.size != args[1].type.size:
+            c.err("E213", f"`{f}` of vectors of different sizes", e.span)
+            return ERR
+        d = T.mul_dim(args[0].type.dim, args[1].type.dim)
+        return T.num(d) if f == "dot" else T.vec(3, d)
+    if f in ("norm", "normalize"):
+        if kinds[0] != "vec":
+            return bad(0, "a vector")
+        return T.num(args[0].type.dim) if f == "norm" else T.vec(args[0].type.size)
+    if f == "axis_angle":
+        if kinds[0] != "vec" or args[0].type.size != 3:
+            return bad(0, "a 3-vector")
+        return T.ROT if angle_like(1) else bad(1, "an angle")
+    if f == "trans":
+        if n == 1:
+            if kinds[0] != "vec" or args[0].type.size != 3:
+                return bad(0, "a 3-vector of lengths")
+            c.coerce(args[0], T.vec(3, LENGTH), e.args[0].span)
+            return T.POSE
+        for i in range(3):
+            if kinds[i] != "num":
+                return bad(i, "a length")
+            c.coerce(args[i], T.num(LENGTH), e.args[i].span)
+        return T.POSE
+    if f == "inv":
+        return args[0].type if kinds[0] in ("rot", "pose") else bad(0, "a rotation or pose")
+    raise AssertionError(f"builtin without a type rule: {f}")
+
+
+def _a(t: Type) -> str:
+    s = str(t)
+    return ("an " if s[0] in "aeiou" else "a ") + s
+
+
+def _is_zero(const: Any) -> bool:
+    if const is None or isinstance(const, str):
+        return False
+    if isinstance(const, tuple):
+        return all(_is_zero(c) for c in const)
+    return float(const) == 0.0
+
+
+def _neg(const: Any) -> Any:
+    if const is None:
+        return None
+    return tuple(-c for c in const) if isinstance(const, tuple) else -const
+
+
+def _arith(op: str, a: Any, b: Any) -> Any:
+    """Fold unit-less constants (so that ``0 * x`` and ``-0`` still count as zero)."""
+    if a is None or b is None or isinstance(a, (tuple, str)) or isinstance(b, (tuple, str)):
+        return None
+    with np.errstate(all="ignore"):
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            return a * b
+        if op == "/":
+            return a / b if b != 0 else None
+        return float(np.power(float(a), float(b)))
+
+
+def _example(const: Any, unit: str) -> str:
+    if isinstance(const, tuple):
+        return "(" + ", ".join(_example(c, unit) for c in const) + ")"
+    return f"{float(const):g}{unit}"
+
+
+def _fmt_any(value: Any, dim: Dim) -> str:
+    arr = np.atleast_1d(np.asarray(value, dtype=float))
+    parts = [_fmt(float(v), dim) for v in arr]
+    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
+
+
+__all__ = ["check", "Checked", "CheckedConcept", "names_in", "literal_value"]

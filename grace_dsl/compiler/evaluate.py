@@ -1,0 +1,211 @@
+"""Lower a type-checked expression to a backend value: one implementation, three backends.
+
+Values are backend scalars, tuples (vectors), 3x3 tuples (rotations), 4x4 tuples (poses),
+conditions, and Python strings for choice literals.  The checker's type table tells how to
+combine them; the expression is never turned into text or evaluated as Python.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from grace_dsl.compiler import se3
+from grace_dsl.compiler.backends import Backend
+from grace_dsl.compiler.types import Type
+from grace_dsl.lang import ast
+
+TypeTable = Mapping[int, Type]
+
+
+class Evaluator:
+    """Evaluates expressions under ``env`` (name -> value); ``lazy`` supplies values on demand."""
+
+    def __init__(
+        self,
+        backend: Backend,
+        types: TypeTable,
+        env: Mapping[str, Any],
+        lazy: Callable[[str], Any] | None = None,
+    ):
+        self.b = backend
+        self.types = types
+        self.env = dict(env)
+        self.lazy = lazy
+
+    def type_of(self, e: ast.Expr) -> Type:
+        return self.types[id(e)]
+
+    def __call__(self, e: ast.Expr) -> Any:
+        method: Callable[[Any], Any] = getattr(self, "_" + type(e).__name__.lower())
+        return method(e)
+
+    # -- leaves
+    def _number(self, e: ast.Number) -> Any:
+        return self.b.literal(e)
+
+    def _string(self, e: ast.String) -> Any:
+        return e.value
+
+    def _bool(self, e: ast.Bool) -> Any:
+        return self.b.boolean(e.value)
+
+    def _name(self, e: ast.Name) -> Any:
+        if e.id in self.env:
+            return self.env[e.id]
+        if e.id == "pi":
+            return self.b.pi
+        if self.lazy is not None:
+            value = self.lazy(e.id)
+            self.env[e.id] = value
+            return value
+        raise KeyError(e.id)
+
+    def _vector(self, e: ast.Vector) -> Any:
+        return tuple(self(x) for x in e.items)
+
+    def _member(self, e: ast.Member) -> Any:
+        if isinstance(e.obj, ast.Name):
+            qualified = f"{e.obj.id}.{e.field}"
+            if qualified in self.env:  # a part's parameter
+                return self.env[qualified]
+        return self(e.obj)["xyz".index(e.field)]
+
+    def _ifexpr(self, e: ast.IfExpr) -> Any:
+        cond, a, b = self(e.cond), self(e.then), self(e.orelse)
+        return _zip_apply(lambda x, y: self.b.if_else(cond, x, y), a, b)
+
+    # -- operators
+    def _unary(self, e: ast.Unary) -> Any:
+        v = self(e.operand)
+        if e.op == "not":
+            return self.b.not_(v)
+        return _map(lambda x: -x, v) if e.op == "-" else v
+
+    def _binary(self, e: ast.Binary) -> Any:
+        if e.op == "and":
+            return self.b.and_(self(e.left), self(e.right))
+        if e.op == "or":
+            return self.b.or_(self(e.left), self(e.right))
+        lt, rt = self.type_of(e.left), self.type_of(e.right)
+        a, b = self(e.left), self(e.right)
+        if e.op in ast.COMPARISONS:
+            return self._compare(e.op, lt, a, rt, b)
+        if e.op == "+":
+            return _zip_apply(lambda x, y: x + y, a, b)
+        if e.op == "-":
+            return _zip_apply(lambda x, y: x - y, a, b)
+        if e.op == "^":
+            return self.b.pow(a, b)
+        if e.op == "/":
+            return _map(lambda x: x / b, a)
+        return self._multiply(lt, a, rt, b)
+
+    def _compare(self, op: str, lt: Type, a: Any, rt: Type, b: Any) -> Any:
+        if isinstance(a, str) or isinstance(b, str):
+            (choice_t, index), text = ((lt, a), b) if isinstance(b, str) else ((rt, b), a)
+            code = self.b.num(float(choice_t.choices.index(text)))
+            return self.b.compare(op, index, code)
+        if lt.kind == "bool":
+            a, b = self.b.as_number(a), self.b.as_number(b)
+        return self.b.compare(op, a, b)
+
+    def _multiply(self, lt: Type, a: Any, rt: Type, b: Any) -> Any:
+        if lt.kind == "num":
+            return _map(lambda y: a * y, b)
+        if rt.kind == "num":
+            return _map(lambda x: x * b, a)
+        if rt.kind == "vec":
+            return se3.matvec(a, b) if lt.kind == "rot" else se3.transform_point(a, b)
+        if lt.kind == rt.kind:
+            return se3.matmul(a, b)
+        if lt.kind == "rot":  # rot * pose
+            return se3.matmul(se3.pose(a, (0, 0, 0)), b)
+        return se3.matmul(a, se3.pose(b, (0, 0, 0)))  # pose * rot
+
+    # -- calls
+    def _call(self, e: ast.Call) -> Any:
+        args = [self(a.value) for a in e.args]
+        return BUILTINS[e.func](self.b, [self.type_of(a.value) for a in e.args], *args)
+
+
+def _map(f: Callable[[Any], Any], v: Any) -> Any:
+    if isinstance(v, tuple):
+        return tuple(_map(f, x) for x in v)
+    return f(v)
+
+
+def _zip_apply(f: Callable[[Any, Any], Any], a: Any, b: Any) -> Any:
+    if isinstance(a, tuple):
+        return tuple(_zip_apply(f, x, y) for x, y in zip(a, b))
+    return f(a, b)
+
+
+def _norm(b: Backend, v: tuple[Any, ...]) -> Any:
+    total = v[0] * v[0]
+    for x in v[1:]:
+        total = total + x * x
+    return b.sqrt(total)
+
+
+def _dot(v: tuple[Any, ...], w: tuple[Any, ...]) -> Any:
+    total = v[0] * w[0]
+    for x, y in zip(v[1:], w[1:]):
+        total = total + x * y
+    return total
+
+
+def _trans(b: Backend, types: list[Type], *args: Any) -> Any:
+    t = args[0] if len(args) == 1 else tuple(args)
+    return se3.translation(t)
+
+
+def _rpy(b: Backend, types: list[Type], r: Any, p: Any, y: Any) -> Any:
+    rx = se3.rot_x(b.cos(r), b.sin(r))
+    ry = se3.rot_y(b.cos(p), b.sin(p))
+    rz = se3.rot_z(b.cos(y), b.sin(y))
+    return se3.matmul(rz, se3.matmul(ry, rx))
+
+
+def _axis_angle(b: Backend, types: list[Type], axis: Any, a: Any) -> Any:
+    n = _norm(b, axis)
+    unit = tuple(x / n for x in axis)
+    return se3.axis_angle(unit, b.cos(a), b.sin(a))
+
+
+def _rotation(make: Callable[[Any, Any], Any]) -> Callable[..., Any]:
+    return lambda b, types, a: make(b.cos(a), b.sin(a))
+
+
+def _inv(b: Backend, types: list[Type], m: Any) -> Any:
+    return se3.invert(m)
+
+
+def _clamp(b: Backend, types: list[Type], x: Any, lo: Any, hi: Any) -> Any:
+    return b.min(b.max(x, lo), hi)
+
+
+BUILTINS: dict[str, Callable[..., Any]] = {
+    "sin": lambda b, t, x: b.sin(x),
+    "cos": lambda b, t, x: b.cos(x),
+    "tan": lambda b, t, x: b.tan(x),
+    "asin": lambda b, t, x: b.asin(x),
+    "acos": lambda b, t, x: b.acos(x),
+    "atan2": lambda b, t, y, x: b.atan2(y, x),
+    "sqrt": lambda b, t, x: b.sqrt(x),
+    "abs": lambda b, t, x: _map(b.abs, x),
+    "min": lambda b, t, x, y: _zip_apply(b.min, x, y),
+    "max": lambda b, t, x, y: _zip_apply(b.max, x, y),
+    "clamp": _clamp,
+    "dot": lambda b, t, v, w: _dot(v, w),
+    "cross": lambda b, t, v, w: se3.cross(v, w),
+    "norm": lambda b, t, v: _norm(b, v),
+    "normalize": lambda b, t, v: tuple(x / _norm(b, v) for x in v),
+    "rotx": _rotation(se3.rot_x),
+    "roty": _rotation(se3.rot_y),
+    "rotz": _rotation(se3.rot_z),
+    "rpy": _rpy,
+    "axis_angle": _axis_angle,
+    "trans": _trans,
+    "inv": _inv,
+}

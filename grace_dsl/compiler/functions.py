@@ -1,0 +1,118 @@
+"""Turn a lowered concept into CasADi functions and SymPy formulas.
+
+Every function takes the flat parameter vector ``p`` (SI units, in the order of the manifest's
+parameters), and where relevant the joint values ``q``, the free grasp parameters ``g`` or a point
+``x``.  Functions are keyed ``grasp:handle.pull``; their CasADi names are plain identifiers
+(``f3_grasp``) so they can become C symbols.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import sympy as sp
+
+from grace_dsl.compiler.backends import CASADI, SYMPY
+from grace_dsl.compiler.check import Checked
+from grace_dsl.compiler import se3
+from grace_dsl.compiler.lower import Lowered, lower
+
+
+def fn_key(kind: str, name: str = "") -> str:
+    """The key of a function: ``kind`` (link, grasp, ...) and a qualified member name."""
+    return kind if not name else f"{kind}:{name}"
+
+
+@dataclass(frozen=True)
+class Compiled:
+    lowered: Lowered
+    functions: dict[str, ca.Function]
+
+
+def _column(xs: list[Any], name: str) -> Any:
+    return ca.vertcat(*xs) if xs else ca.SX.sym(name, 0)
+
+
+def _mat(rows: Any) -> Any:
+    return ca.vertcat(*[ca.horzcat(*row) for row in rows])
+
+
+def _vec(xs: Any) -> Any:
+    return ca.vertcat(*xs) if len(xs) else ca.SX(0, 1)
+
+
+def casadi_functions(checked: Checked, name: str) -> Compiled:
+    """Lower concept ``name`` to CasADi SX and wrap every query as a ``casadi.Function``."""
+    low = lower(checked, name, CASADI, lambda kind, sym: ca.SX.sym(sym))
+    p, q = _column(low.p, "p"), _column(low.q, "q")
+    fns: dict[str, ca.Function] = {}
+
+    def add(key: str, inputs: list[tuple[str, Any]], outputs: list[tuple[str, Any]]) -> None:
+        ident = f"f{len(fns)}_{key.split(':')[0]}"
+        fns[key] = ca.Function(ident, [v for _, v in inputs], [v for _, v in outputs],
+                               [n for n, _ in inputs], [n for n, _ in outputs])
+
+    for link, pose in low.links.items():
+        add(fn_key("link", link), [("p", p), ("q", q)], [("T", _mat(pose))])
+    for gname, g in low.grasps.items():
+        gv = _column(list(g.symbols), "g")
+        add(fn_key("grasp", gname), [("p", p), ("q", q), ("g", gv)], [("T", _mat(g.pose))])
+        add(fn_key("grasp_range", gname), [("p", p)],
+            [("lo", _vec([f.lo for f in g.free])), ("hi", _vec([f.hi for f in g.free])),
+             ("default", _vec([f.default for f in g.free]))])
+        if g.width is not None:
+            add(fn_key("grasp_width", gname), [("p", p)], [("width", g.width)])
+    x = ca.SX.sym("x", 3)
+    for aname, a in low.actions.items():
+        add(fn_key("force", aname), [("p", p), ("q", q), ("x", x)],
+            [("f", force_direction(low, a.name, [x[0], x[1], x[2]]))])
+    add("requires", [("p", p)], [("r", _vec([r.residual for r in low.requires]))])
+    moving = [j for j in low.joints if j.kind != "fixed"]
+    add("joint_limits", [("p", p)],
+        [("lo", _vec([j.lo if j.lo is not None else -ca.inf for j in moving])),
+         ("hi", _vec([j.hi if j.hi is not None else ca.inf for j in moving]))])
+    add("joint_axes", [("p", p), ("q", q)],
+        [("axis", _vec([a for j in moving for a in j.axis])),
+         ("origin", _vec([o for j in moving for o in j.origin]))])
+    for shape in low.shapes:
+        args = [v for val in shape.args.values() for v in (val if isinstance(val, tuple) else
+                                                          (val,))]
+        add(fn_key("shape", shape.name), [("p", p), ("q", q)],
+            [("T", _mat(shape.pose)), ("args", _vec(args))])
+    return Compiled(low, fns)
+
+
+def force_direction(low: Lowered, action: str, x: list[Any]) -> Any:
+    """The unit direction in which the point x must move to perform ``action``."""
+    a = low.actions[action]
+    if a.direction is not None:
+        return _vec(list(a.direction))
+    joint = next(j for j in low.joints if j.name == a.joint)
+    if joint.kind == "prismatic":
+        v = joint.axis
+    else:
+        v = se3.cross(joint.axis, tuple(xi - oi for xi, oi in zip(x, joint.origin)))
+    v = tuple(a.sign * c for c in v)
+    n = ca.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return _vec([c / n for c in v])
+
+
+def sympy_model(checked: Checked, name: str) -> Lowered:
+    """The same model with exact SymPy expressions (free grasp parameters by their own names)."""
+    def make(kind: str, sym: str) -> sp.Symbol:
+        label = {"p": sym, "q": f"q_{sym}", "g": sym.split(":", 1)[-1]}[kind]
+        return sp.Symbol(label, real=True)
+
+    return lower(checked, name, SYMPY, make)
+
+
+def sympy_matrix(rows: Any) -> sp.Matrix:
+    return sp.Matrix([[_exact(v) for v in row] for row in rows])
+
+
+def _exact(v: Any) -> Any:
+    if isinstance(v, (int, float)):
+        return sp.Integer(int(v)) if float(v).is_integer() else sp.Float(v)
+    return v

@@ -1,0 +1,356 @@
+"""Lower pass: a checked concept -> a flat kinematic model over one backend's values.
+
+Parts are flattened into their host: the links, joints, shapes, grasps and actions of a part get
+qualified names (``handle.pull``), its base link hangs on the host link through its placement, and
+its parameters are either bound by the part's arguments or lifted into the host as parameters of
+their own (``handle.r_in``), so perception can estimate them.
+
+Every link frame coincides with the concept frame when all joints are closed (q = 0); a joint
+moves its child as ``T(o) * M(s q) * T(-o)`` where o is the joint origin and s its opening sense.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from grace_dsl.compiler import se3
+from grace_dsl.compiler.backends import Backend
+from grace_dsl.compiler.check import VERBS, Checked, CheckedConcept
+from grace_dsl.compiler.evaluate import Evaluator
+from grace_dsl.compiler.resolve import BASE_LINK
+from grace_dsl.compiler.types import Type
+from grace_dsl.lang import ast
+
+MakeSymbol = Callable[[str, str], Any]  # (kind "p" | "q" | "g", qualified name)
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    name: str  # qualified: "handle.r_in"
+    type: Type
+    size: int  # number of scalars in the parameter vector
+    lo: Any  # SI float or tuple, None without a range
+    hi: Any
+    default: Any
+    help: str | None
+    doc: str
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    name: str
+    kind: str
+    parent: str
+    child: str
+    lo: Any  # backend value (may depend on parameters); None for continuous/fixed
+    hi: Any
+    axis: Any  # unit axis in the concept frame at the current q of its parent (backend tuple)
+    origin: Any  # a point on the axis, concept frame (backend tuple)
+    doc: str
+
+
+@dataclass(frozen=True)
+class FreeInfo:
+    name: str
+    type: Type
+    lo: Any
+    hi: Any
+    default: Any
+
+
+@dataclass(frozen=True)
+class GraspInfo:
+    name: str
+    link: str
+    free: tuple[FreeInfo, ...]
+    symbols: tuple[Any, ...]
+    pose: Any  # 4x4 tuple in the concept frame
+    width: Any  # backend value or None
+    doc: str
+    source: ast.Grasp
+
+
+@dataclass(frozen=True)
+class ActionInfo:
+    name: str
+    verb: str
+    joint: str | None
+    sign: int  # +1: along q increasing (opening), -1: closing
+    direction: Any  # explicit direction, unit 3-tuple in the concept frame (or None)
+    using: tuple[str, ...]
+    doc: str
+
+
+@dataclass(frozen=True)
+class ShapeInfo:
+    name: str
+    link: str
+    primitive: str  # primitive name, or "union"/"difference"
+    args: dict[str, Any]  # primitive parameter -> backend value (SI)
+    operands: tuple[str, ...]  # for set operations: qualified shape names
+    pose: Any  # 4x4 in the concept frame
+
+
+@dataclass(frozen=True)
+class RequireInfo:
+    residual: Any  # <= 0 when the requirement holds
+    message: str
+    source: str
+
+
+@dataclass
+class Lowered:
+    """The flat model of a concept over one backend."""
+
+    name: str
+    doc: str
+    params: list[ParamInfo] = field(default_factory=list)
+    p: list[Any] = field(default_factory=list)
+    q: list[Any] = field(default_factory=list)
+    links: dict[str, Any] = field(default_factory=dict)
+    link_docs: dict[str, str] = field(default_factory=dict)
+    joints: list[JointInfo] = field(default_factory=list)
+    grasps: dict[str, GraspInfo] = field(default_factory=dict)
+    actions: dict[str, ActionInfo] = field(default_factory=dict)
+    shapes: list[ShapeInfo] = field(default_factory=list)
+    requires: list[RequireInfo] = field(default_factory=list)
+    parts: dict[str, str] = field(default_factory=dict)  # qualified part -> concept
+
+
+def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
+    """Flatten concept ``name`` into a ``Lowered`` model whose inputs are fresh symbols."""
+    cc = checked.concepts[name]
+    out = Lowered(name, cc.decl.doc)
+    _Instance(checked, backend, make_symbol, out).build(cc, "", {}, se3.identity(4), BASE_LINK)
+    return out
+
+
+def symbol_names(param: ParamInfo) -> list[str]:
+    """Names of the scalar entries of a parameter (``size.x``, ``size.y``, ...)."""
+    if param.size == 1:
+        return [param.name]
+    return [f"{param.name}.{c}" for c in "xyz"[: param.size]]
+
+
+class _Instance:
+    def __init__(self, checked: Checked, backend: Backend, make_symbol: MakeSymbol, out: Lowered):
+        self.checked, self.b, self.sym, self.out = checked, backend, make_symbol, out
+
+    def build(
+        self,
+        cc: CheckedConcept,
+        prefix: str,
+        bindings: dict[str, Any],
+        host_pose: Any,
+        host_link: str,
+    ) -> None:
+        decl = cc.decl
+        env: dict[str, Any] = {}
+        for p in (m for m in decl.members if isinstance(m, ast.Param)):
+            env[p.name] = bindings[p.name] if p.name in bindings else self._lift(cc, p, prefix)
+        lets = {m.name: m for m in _all(decl) if isinstance(m, ast.Let)}
+        ev = Evaluator(self.b, self.checked.types, env, lambda n: ev(lets[n].value))
+        parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
+        part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
+        for part_name, bound in part_bindings.items():
+            for k, v in bound.items():
+                ev.env[f"{part_name}.{k}"] = v
+        # links and joints
+        q = lambda local: prefix + local  # noqa: E731
+        link_of = {BASE_LINK: host_link}
+        for link in (m for m in decl.members if isinstance(m, ast.Link)):
+            link_of[link.name] = q(link.name)
+            self.out.link_docs[q(link.name)] = link.doc
+        poses = {BASE_LINK: host_pose}
+        self._joints(decl, prefix, ev, poses, link_of)
+        for lname, pose in poses.items():
+            if lname != BASE_LINK or not prefix:
+                self.out.links[link_of[lname]] = pose
+        # shapes, grasps and parts in link order
+        for m, lname in _placed(decl):
+            pose = poses[lname]
+            if isinstance(m, ast.Shape):
+                self._shape(m, prefix, link_of[lname], pose, ev)
+            elif isinstance(m, ast.Grasp):
+                self._grasp(cc, m, prefix, link_of[lname], pose, ev)
+            elif isinstance(m, ast.Part):
+                self._part(m, prefix, link_of[lname], pose, ev, part_bindings[m.name])
+        for m in decl.members:
+            if isinstance(m, ast.Action):
+                self._action(m, prefix, ev, host_pose)
+            elif isinstance(m, ast.Require):
+                self._require(m, prefix, ev)
+
+    # -- parameters
+    def _lift(self, cc: CheckedConcept, p: ast.Param, prefix: str) -> Any:
+        t = cc.param_types[p.name]
+        lo, hi = cc.bounds.get(p.name, (None, None))
+        info = ParamInfo(prefix + p.name, t, t.size if t.kind == "vec" else 1, lo, hi,
+                         cc.defaults.get(p.name), p.help, p.doc)
+        self.out.params.append(info)
+        symbols = [self.sym("p", n) for n in symbol_names(info)]
+        self.out.p += symbols
+        return tuple(symbols) if t.kind == "vec" else symbols[0]
+
+    def _part_bindings(self, part: ast.Part, prefix: str, ev: Evaluator) -> dict[str, Any]:
+        """Every parameter of a part: its argument's value, or a lifted parameter of the host."""
+        bound = {a.name: ev(a.value) for a in part.args if a.name is not None}
+        sub = self.checked.concepts[part.concept]
+        for p in (m for m in sub.decl.members if isinstance(m, ast.Param)):
+            if p.name not in bound:
+                bound[p.name] = self._lift(sub, p, f"{prefix}{part.name}.")
+        return bound
+
+    # -- kinematics
+    def _joints(self, decl: ast.Concept, prefix: str, ev: Evaluator, poses: dict[str, Any],
+                link_of: dict[str, str]) -> None:
+        pending = [m for m in decl.members if isinstance(m, ast.Joint)]
+        while pending:
+            ready = [j for j in pending if j.parent in poses]
+            if not ready:
+                raise AssertionError("joint tree not checked")  # resolve guarantees a tree
+            for j in ready:
+                pending.remove(j)
+                poses[j.child] = self._joint(j, prefix, ev, poses[j.parent], link_of)
+
+    def _joint(self, j: ast.Joint, prefix: str, ev: Evaluator, parent_pose: Any,
+               link_of: dict[str, str]) -> Any:
+        name = prefix + j.name
+        sign = j.opens if j.opens is not None else 1
+        if j.kind == "fixed":
+            self.out.joints.append(JointInfo(name, j.kind, link_of[j.parent], link_of[j.child],
+                                             None, None, None, None, j.doc))
+            return parent_pose
+        qv = self.sym("q", name)
+        self.out.q.append(qv)
+        assert j.axis is not None
+        axis = _unit(self.b, ev(j.axis))
+        origin = ev(j.origin) if j.origin is not None else (0, 0, 0)
+        if j.kind == "prismatic":
+            motion = se3.translation(tuple(a * (sign * qv) for a in axis))
+        else:
+            angle = sign * qv
+            rot = se3.axis_angle(axis, self.b.cos(angle), self.b.sin(angle))
+            back = tuple(-o for o in origin)
+            motion = se3.matmul(se3.translation(origin),
+                                se3.matmul(se3.pose(rot, (0, 0, 0)), se3.translation(back)))
+        lo = ev(j.limits.lo) if j.limits is not None else None
+        hi = ev(j.limits.hi) if j.limits is not None else None
+        rot_parent = se3.rotation_of(parent_pose)
+        world_axis = tuple(sign * a for a in se3.matvec(rot_parent, axis))
+        world_origin = se3.transform_point(parent_pose, origin)
+        self.out.joints.append(JointInfo(name, j.kind, link_of[j.parent], link_of[j.child], lo,
+                                         hi, world_axis, world_origin, j.doc))
+        return se3.matmul(parent_pose, motion)
+
+    # -- geometry and manipulation
+    def _shape(self, s: ast.Shape, prefix: str, link: str, link_pose: Any,
+               ev: Evaluator) -> None:
+        v = s.value
+        assert isinstance(v, ast.Call)
+        pose = link_pose if s.at is None else se3.matmul(link_pose, _as_pose(ev(s.at)))
+        if v.func in ("union", "difference"):
+            operands = tuple(prefix + a.value.id for a in v.args if isinstance(a.value, ast.Name))
+            self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose))
+            return
+        prim = self.checked.concepts[v.func]
+        args = dict(prim.defaults)
+        args.update({a.name: ev(a.value) for a in v.args if a.name is not None})
+        args = {k: _as_backend(self.b, val) for k, val in args.items()}
+        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose))
+
+    def _grasp(self, cc: CheckedConcept, g: ast.Grasp, prefix: str, link: str, link_pose: Any,
+               ev: Evaluator) -> None:
+        name = prefix + g.name
+        free, symbols = [], []
+        for fp in g.free:
+            sym = self.sym("g", f"{name}:{fp.name}")
+            lo, hi = ev(fp.lo), ev(fp.hi)
+            default = ev(fp.default) if fp.default is not None else (lo + hi) / 2
+            free.append(FreeInfo(fp.name, cc.free_types[g.name][fp.name], lo, hi, default))
+            symbols.append(sym)
+        sub = Evaluator(self.b, ev.types, {**ev.env, **dict(zip((f.name for f in g.free),
+                                                                symbols))}, ev.lazy)
+        pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
+        width = sub(g.width) if g.width is not None else None
+        self.out.grasps[name] = GraspInfo(name, link, tuple(free), tuple(symbols), pose, width,
+                                          g.doc, g)
+
+    def _part(self, m: ast.Part, prefix: str, link: str, link_pose: Any, ev: Evaluator,
+              bound: dict[str, Any]) -> None:
+        host = link_pose if m.at is None else se3.matmul(link_pose, _as_pose(ev(m.at)))
+        self.out.parts[prefix + m.name] = m.concept
+        self.build(self.checked.concepts[m.concept], f"{prefix}{m.name}.", bound, host, link)
+
+    def _action(self, a: ast.Action, prefix: str, ev: Evaluator, frame: Any) -> None:
+        sense = a.sense or VERBS[a.verb]
+        direction = None
+        if a.direction is not None:
+            direction = _unit(self.b, se3.matvec(se3.rotation_of(frame), ev(a.direction)))
+        joint = prefix + a.joint if a.joint else None
+        self.out.actions[prefix + a.name] = ActionInfo(
+            prefix + a.name, a.verb, joint, 1 if sense == "opening" else -1, direction,
+            tuple(prefix + u for u in a.using), a.doc,
+        )
+
+    def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
+        where = f"{prefix}: " if prefix else ""
+        self.out.requires.append(RequireInfo(residual(self.b, ev, r.cond),
+                                             where + (r.message or ""), _brief(r)))
+
+
+def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:
+    """A number that is <= 0 exactly when ``cond`` holds, scaled like the compared quantities."""
+    if isinstance(cond, ast.Binary) and cond.op in ("<", "<=", ">", ">="):
+        left, right = ev(cond.left), ev(cond.right)
+        if not isinstance(left, (tuple, str)):
+            return left - right if cond.op in ("<", "<=") else right - left
+    if isinstance(cond, ast.Binary) and cond.op in ("and", "or"):
+        r1, r2 = residual(b, ev, cond.left), residual(b, ev, cond.right)
+        return b.max(r1, r2) if cond.op == "and" else b.min(r1, r2)
+    return b.if_else(ev(cond), b.num(-1.0), b.num(1.0))
+
+
+def _brief(r: ast.Require) -> str:
+    s = r.cond.span
+    return f"line {s.line}" if s.line else ""
+
+
+def _unit(b: Backend, v: tuple[Any, ...]) -> tuple[Any, ...]:
+    total = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    n = b.sqrt(total)
+    return tuple(x / n for x in v)
+
+
+def _as_pose(m: Any) -> Any:
+    return se3.pose(m, (0, 0, 0)) if len(m) == 3 else m
+
+
+def _as_backend(b: Backend, value: Any) -> Any:
+    if isinstance(value, tuple):
+        return tuple(_as_backend(b, v) for v in value)
+    if isinstance(value, (int, float)):
+        return b.num(float(value))
+    return value
+
+
+def _all(decl: ast.Concept) -> list[ast.Member_]:
+    out: list[ast.Member_] = []
+    for m in decl.members:
+        out.append(m)
+        if isinstance(m, ast.Link):
+            out += list(m.members)
+    return out
+
+
+def _placed(decl: ast.Concept) -> list[tuple[ast.Member_, str]]:
+    """Shapes, grasps and parts with the link they belong to."""
+    out: list[tuple[ast.Member_, str]] = []
+    for m in decl.members:
+        if isinstance(m, ast.Link):
+            out += [(x, m.name) for x in m.members if not isinstance(x, ast.Let)]
+        elif isinstance(m, (ast.Shape, ast.Grasp, ast.Part)):
+            out.append((m, BASE_LINK))
+    return out

@@ -1,0 +1,851 @@
+"""Native evaluation of CasADi SX functions: emit C from the expression graph, compile once, call.
+
+Why: the runtime evaluates concept functions (grasp poses, constraints) in tight loops.  CasADi's
+Python call costs ~25 us and its ``map`` ~0.5 us per sample, which is no faster than hand-written
+numpy.  A straight-line C kernel generated from the SX algorithm costs ~1 us per call from Python
+(dominated by ctypes) and a few ns per sample in a vectorised batch loop.
+
+Design:
+
+* :func:`generate_c` walks the SX instruction list and emits two entry points per function,
+  ``<sym>_one`` (one sample, dense column-major inputs/outputs concatenated) and ``<sym>_batch``
+  (struct-of-arrays per argument, a loop gcc vectorises, optionally split over pthreads).
+* Ops the generator does not know raise :class:`NativeUnsupportedError`, never wrong code.
+* :func:`build_shared_library` compiles with the system C compiler, atomically; it returns
+  ``None`` when there is no compiler or compilation fails, and callers fall back to CasADi.
+* :func:`fast_function` / :func:`fast_functions` return the best evaluator available with one
+  interface (``__call__`` for one sample, ``batch`` for many) and cache the ``.so`` by content hash.
+
+Floating point: we do *not* use ``-ffast-math``; it assumes finite values, reassociates and drops
+signed zeros, which changes NaN/Inf propagation, ``if_else``, ``fmin``/``fmax`` and atan2's branch
+cut.  We only drop errno and trap semantics and ask glibc for its libmvec SIMD declarations (see
+``_PRELUDE``), so loops over sin/cos/exp/... still vectorise.  Results then differ from CasADi only
+in the last bits (FMA contraction, libmvec's <= 4 ulp transcendental functions).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import hashlib
+import logging
+import os
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import tempfile
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Protocol
+
+import casadi
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "CasadiEvaluator",
+    "Evaluator",
+    "NativeFunction",
+    "NativeUnsupportedError",
+    "build_native_library",
+    "build_shared_library",
+    "default_cache_dir",
+    "fast_function",
+    "fast_functions",
+    "find_compiler",
+    "generate_c",
+    "generate_library_c",
+    "load_native_library",
+]
+
+logger = logging.getLogger(__name__)
+
+ArrayLike = npt.ArrayLike
+FloatArray = npt.NDArray[np.float64]
+Outputs = FloatArray | tuple[FloatArray, ...]
+
+#: Bumped whenever the generated code or the calling convention changes (invalidates caches).
+ABI_VERSION = 1
+#: Samples per thread below which ``batch`` stays single-threaded (thread start ~20-50 us).
+MIN_SAMPLES_PER_THREAD = 16384
+#: Upper bound on threads chosen automatically by ``batch``.
+MAX_AUTO_THREADS = 8
+#: IEEE-preserving optimisation flags.  sin/cos must not be builtins: gcc would merge sin(x) and
+#: cos(x) into one complex sincos call, which blocks vectorisation of the whole loop.
+_OPT_FLAGS = ("-O3", "-fno-math-errno", "-fno-trapping-math", "-fno-builtin-sin",
+              "-fno-builtin-cos")
+#: Compiler flag tiers, tried in order: tuned for this CPU, then portable.
+FLAG_TIERS: tuple[tuple[str, ...], ...] = (("-march=native", *_OPT_FLAGS), _OPT_FLAGS)
+_LINK_FLAGS = ("-shared", "-fPIC", "-pthread")
+_COMPILE_TIMEOUT_S = 600.0
+
+
+class NativeUnsupportedError(ValueError):
+    """A function cannot be lowered to C (unknown op, free variables, non-SX); use CasADi."""
+
+
+# --------------------------------------------------------------------------------------------
+# Function layout (shapes, offsets) shared by the native and the CasADi evaluators
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Arg:
+    """One input or output: its dense shape and its offset in the concatenated dense vector."""
+
+    name: str
+    rows: int
+    cols: int
+    offset: int
+
+    @property
+    def size(self) -> int:
+        return self.rows * self.cols
+
+    @property
+    def sample_shapes(self) -> tuple[tuple[int, ...], ...]:
+        """Shapes accepted for one sample: (r, c), plus (r,) for vectors and () for scalars."""
+        shapes: list[tuple[int, ...]] = [(self.rows, self.cols)]
+        if self.rows == 1 or self.cols == 1:
+            shapes.append((self.size,))
+        if self.size == 1:
+            shapes.append(())
+        return tuple(shapes)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Dense shapes of a function's inputs and outputs."""
+
+    name: str
+    inputs: tuple[_Arg, ...]
+    outputs: tuple[_Arg, ...]
+
+    @staticmethod
+    def of(fn: casadi.Function) -> _Layout:
+        def args(n: int, sparsity: Callable[[int], Any], name: Callable[[int], str]) -> tuple:
+            out, offset = [], 0
+            for k in range(n):
+                sp = sparsity(k)
+                out.append(_Arg(name(k), sp.size1(), sp.size2(), offset))
+                offset += sp.size1() * sp.size2()
+            return tuple(out)
+
+        return _Layout(
+            fn.name(),
+            args(fn.n_in(), fn.sparsity_in, fn.name_in),
+            args(fn.n_out(), fn.sparsity_out, fn.name_out),
+        )
+
+    @property
+    def n_in(self) -> int:
+        return sum(a.size for a in self.inputs)
+
+    @property
+    def n_out(self) -> int:
+        return sum(a.size for a in self.outputs)
+
+    def check_arity(self, args: Sequence[object]) -> None:
+        if len(args) != len(self.inputs):
+            raise TypeError(f"{self.name} takes {len(self.inputs)} arguments, got {len(args)}")
+
+    def sample(self, k: int, value: ArrayLike) -> FloatArray:
+        """One unbatched argument as an (r, c) float array."""
+        arg = self.inputs[k]
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape not in arg.sample_shapes:
+            raise ValueError(f"{self.name}: input {arg.name!r} expects shape "
+                             f"{(arg.rows, arg.cols)}, got {arr.shape}")
+        return arr.reshape(arg.rows, arg.cols)
+
+    def split_batch(self, args: Sequence[ArrayLike]) -> tuple[int, list[FloatArray | None],
+                                                              list[FloatArray]]:
+        """Classify batch arguments: returns N, batched (N, r, c) arrays and unbatched (r, c).
+
+        An argument whose shape is a valid single-sample shape is broadcast; otherwise its leading
+        axis is the batch axis.  All batched arguments must agree on N (N = 1 if none is batched).
+        """
+        self.check_arity(args)
+        batched: list[FloatArray | None] = []
+        fixed: list[FloatArray] = []
+        n: int | None = None
+        for k, value in enumerate(args):
+            arg = self.inputs[k]
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape in arg.sample_shapes:
+                batched.append(None)
+                fixed.append(arr.reshape(arg.rows, arg.cols))
+                continue
+            if arr.ndim == 0 or arr.shape[1:] not in arg.sample_shapes:
+                raise ValueError(f"{self.name}: input {arg.name!r} expects shape "
+                                 f"(N, {arg.rows}, {arg.cols}) or {(arg.rows, arg.cols)}, "
+                                 f"got {arr.shape}")
+            if n is not None and arr.shape[0] != n:
+                raise ValueError(f"{self.name}: batch sizes disagree ({n} vs {arr.shape[0]})")
+            n = arr.shape[0]
+            batched.append(arr.reshape(n, arg.rows, arg.cols))
+            fixed.append(np.empty((0, 0)))
+        return (1 if n is None else n), batched, fixed
+
+
+def _pack(outs: list[FloatArray]) -> Outputs:
+    """Mirror CasADi's Python convention: one output -> array, several -> tuple."""
+    return outs[0] if len(outs) == 1 else tuple(outs)
+
+
+# --------------------------------------------------------------------------------------------
+# C generation
+# --------------------------------------------------------------------------------------------
+
+_PRELUDE = r"""/* Generated by grace_dsl.compiler.native -- do not edit. */
+#include <limits.h> /* pulls in <features.h>, which defines __GLIBC__ */
+#if defined(__GLIBC__) && !defined(__FAST_MATH__)
+/* glibc declares the SIMD (libmvec) variants of sin, cos, exp, ... only under __FAST_MATH__.
+   We want vectorised loops without -ffast-math's IEEE-breaking assumptions, so we request the
+   declarations alone; the code is still compiled with IEEE semantics. */
+#define __FAST_MATH__ 1
+#define GRACE_UNDEF_FAST_MATH 1
+#endif
+#include <math.h>
+#ifdef GRACE_UNDEF_FAST_MATH
+#undef __FAST_MATH__
+#endif
+#include <pthread.h>
+
+#if defined(__clang__)
+#define GRACE_IVDEP _Pragma("clang loop vectorize(assume_safety)")
+#elif defined(__GNUC__)
+#define GRACE_IVDEP _Pragma("GCC ivdep")
+#else
+#define GRACE_IVDEP
+#endif
+
+typedef void (*grace_range_fn)(long, long, long, const double* const*, double* const*);
+typedef struct {
+  grace_range_fn f; long n, i0, i1; const double* const* in; double* const* out;
+} grace_job;
+
+static void* grace_run(void* p) {
+  grace_job* j = (grace_job*)p;
+  j->f(j->n, j->i0, j->i1, j->in, j->out);
+  return 0;
+}
+
+/* Split [0, n) over nthreads threads (the caller runs the first chunk); fork-safe because
+   no thread outlives the call.  A failed pthread_create runs that chunk inline. */
+static void grace_parallel(grace_range_fn f, long n, const double* const* in,
+                           double* const* out, int nthreads) {
+  enum { MAXT = 64 };
+  pthread_t th[MAXT]; grace_job job[MAXT]; int started[MAXT];
+  if (nthreads > MAXT) nthreads = MAXT;
+  if (nthreads <= 1 || n < 2 * nthreads) { f(n, 0, n, in, out); return; }
+  long chunk = ((n + nthreads - 1) / nthreads + 7) & ~7L;
+  for (int t = 0; t < nthreads; ++t) {
+    long i0 = t * chunk, i1 = i0 + chunk;
+    if (i0 > n) i0 = n;
+    if (i1 > n) i1 = n;
+    job[t].f = f; job[t].n = n; job[t].i0 = i0; job[t].i1 = i1; job[t].in = in; job[t].out = out;
+    started[t] = t > 0 && pthread_create(&th[t], 0, grace_run, &job[t]) == 0;
+  }
+  for (int t = 0; t < nthreads; ++t) if (!started[t]) grace_run(&job[t]);
+  for (int t = 1; t < nthreads; ++t) if (started[t]) pthread_join(th[t], 0);
+}
+"""
+
+_UNARY: dict[int, str] = {
+    casadi.OP_NEG: "-{0}",
+    casadi.OP_SQ: "{0} * {0}",
+    casadi.OP_TWICE: "2.0 * {0}",
+    casadi.OP_INV: "1.0 / {0}",
+    casadi.OP_SQRT: "sqrt({0})",
+    casadi.OP_EXP: "exp({0})",
+    casadi.OP_LOG: "log({0})",
+    casadi.OP_EXPM1: "expm1({0})",
+    casadi.OP_LOG1P: "log1p({0})",
+    casadi.OP_SIN: "sin({0})",
+    casadi.OP_COS: "cos({0})",
+    casadi.OP_TAN: "tan({0})",
+    casadi.OP_ASIN: "asin({0})",
+    casadi.OP_ACOS: "acos({0})",
+    casadi.OP_ATAN: "atan({0})",
+    casadi.OP_SINH: "sinh({0})",
+    casadi.OP_COSH: "cosh({0})",
+    casadi.OP_TANH: "tanh({0})",
+    casadi.OP_ASINH: "asinh({0})",
+    casadi.OP_ACOSH: "acosh({0})",
+    casadi.OP_ATANH: "atanh({0})",
+    casadi.OP_ERF: "erf({0})",
+    casadi.OP_FABS: "fabs({0})",
+    casadi.OP_FLOOR: "floor({0})",
+    casadi.OP_CEIL: "ceil({0})",
+    # CasADi: sign(0) = 0 and sign(NaN) = NaN, hence the trailing {0}.
+    casadi.OP_SIGN: "{0} < 0 ? -1.0 : ({0} > 0 ? 1.0 : {0})",
+    casadi.OP_NOT: "!{0}",
+}
+
+_BINARY: dict[int, str] = {
+    casadi.OP_ADD: "{0} + {1}",
+    casadi.OP_SUB: "{0} - {1}",
+    casadi.OP_MUL: "{0} * {1}",
+    casadi.OP_DIV: "{0} / {1}",
+    casadi.OP_POW: "pow({0}, {1})",
+    casadi.OP_CONSTPOW: "pow({0}, {1})",
+    casadi.OP_ATAN2: "atan2({0}, {1})",
+    casadi.OP_HYPOT: "hypot({0}, {1})",
+    casadi.OP_FMIN: "fmin({0}, {1})",
+    casadi.OP_FMAX: "fmax({0}, {1})",
+    casadi.OP_FMOD: "fmod({0}, {1})",
+    casadi.OP_REMAINDER: "remainder({0}, {1})",
+    casadi.OP_COPYSIGN: "copysign({0}, {1})",
+    casadi.OP_LT: "{0} < {1}",
+    casadi.OP_LE: "{0} <= {1}",
+    casadi.OP_EQ: "{0} == {1}",
+    casadi.OP_NE: "{0} != {1}",
+    casadi.OP_AND: "{0} && {1}",
+    casadi.OP_OR: "{0} || {1}",
+    # CasADi: if_else_zero(c, x) = c == 0 ? 0 : x  (if_else(c, a, b) lowers to two of these).
+    casadi.OP_IF_ELSE_ZERO: "{0} != 0 ? {1} : 0.0",
+}
+
+_OP_NAMES = {getattr(casadi, n): n for n in dir(casadi) if n.startswith("OP_")}
+_SYMBOL_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def _c_double(value: float) -> str:
+    """Exact C literal for a double (hex float), including inf/nan."""
+    if np.isnan(value):
+        return "NAN"
+    if np.isinf(value):
+        return "INFINITY" if value > 0 else "(-INFINITY)"
+    return f"({float(value).hex()})"
+
+
+@dataclass(frozen=True)
+class _Kernel:
+    """An SX algorithm lowered to straight-line C, independent of the memory layout.
+
+    ``loads`` are (variable, input index, dense element); ``stores`` are (output index, dense
+    element, variable or literal).  Loads come first and stores last so the body is pure
+    register computation, which keeps gcc's vectoriser free of aliasing doubts.
+    """
+
+    layout: _Layout
+    n_work: int
+    loads: tuple[tuple[str, int, int], ...]
+    body: tuple[str, ...]
+    stores: tuple[tuple[int, int, str], ...]
+
+
+def _as_sx(fn: casadi.Function) -> casadi.Function:
+    if not fn.is_a("SXFunction"):
+        try:
+            fn = fn.expand()
+        except RuntimeError as err:
+            raise NativeUnsupportedError(f"{fn.name()}: cannot expand to SX: {err}") from err
+    if fn.has_free():
+        raise NativeUnsupportedError(f"{fn.name()}: free variables {fn.get_free()}")
+    return fn
+
+
+def _lower(fn: casadi.Function) -> _Kernel:
+    """Translate the SX instruction list of ``fn`` into C statements (see :class:`_Kernel`)."""
+    fn = _as_sx(fn)
+    layout = _Layout.of(fn)
+    in_dense = [fn.sparsity_in(k).find() for k in range(fn.n_in())]
+    out_dense = [fn.sparsity_out(k).find() for k in range(fn.n_out())]
+    loads: dict[tuple[int, int], str] = {}
+    body: list[str] = []
+    results: dict[tuple[int, int], str] = {}
+    n_work = 0
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        arg = fn.instruction_input(k)
+        res = fn.instruction_output(k)
+        if op == casadi.OP_OUTPUT:
+            key = (res[0], out_dense[res[0]][res[1]])
+            results[key] = f"y{key[0]}_{key[1]}"
+            body.append(f"{results[key]} = w{arg[0]};")
+            continue
+        n_work = max(n_work, res[0] + 1)
+        if op == casadi.OP_INPUT:
+            key = (arg[0], in_dense[arg[0]][arg[1]])
+            var = loads.setdefault(key, f"x{key[0]}_{key[1]}")
+            expr = var
+        elif op == casadi.OP_CONST:
+            expr = _c_double(fn.instruction_constant(k))
+        elif op in _UNARY:
+            expr = _UNARY[op].format(f"w{arg[0]}")
+        elif op in _BINARY:
+            expr = _BINARY[op].format(f"w{arg[0]}", f"w{arg[1]}")
+        else:
+            name = _OP_NAMES.get(op, str(op))
+            raise NativeUnsupportedError(f"{fn.name()}: operation {name} is not supported")
+        body.append(f"w{res[0]} = {expr};")
+    stores = [
+        (o, j, results.get((o, j), "0.0"))
+        for o, arg_o in enumerate(layout.outputs)
+        for j in range(arg_o.size)
+    ]
+    load_list = tuple((v, key[0], key[1]) for key, v in loads.items())
+    return _Kernel(layout, n_work, load_list, tuple(body), tuple(stores))
+
+
+def _declarations(kernel: _Kernel, indent: str) -> list[str]:
+    names = [f"w{i}" for i in range(kernel.n_work)]
+    names += [var for _, _, var in kernel.stores if var != "0.0"]
+    return [f"{indent}double {', '.join(names[i:i + 16])};" for i in range(0, len(names), 16)]
+
+
+def _render_one(kernel: _Kernel, symbol: str) -> list[str]:
+    offs_in = [a.offset for a in kernel.layout.inputs]
+    offs_out = [a.offset for a in kernel.layout.outputs]
+    lines = [f"void {symbol}_one(const double* restrict in, double* restrict out) {{"]
+    lines += [f"  const double {v} = in[{offs_in[k] + j}];" for v, k, j in kernel.loads]
+    lines += _declarations(kernel, "  ")
+    lines += [f"  {s}" for s in kernel.body]
+    lines += [f"  out[{offs_out[o] + j}] = {v};" for o, j, v in kernel.stores]
+    return [*lines, "}"]
+
+
+def _render_batch(kernel: _Kernel, symbol: str) -> list[str]:
+    ins = range(len(kernel.layout.inputs))
+    outs = range(len(kernel.layout.outputs))
+    lines = [
+        f"static void {symbol}_range(long n, long i0, long i1, const double* const* in, "
+        "double* const* out) {",
+        *(f"  const double* restrict a{k} = in[{k}];" for k in ins),
+        *(f"  double* restrict r{k} = out[{k}];" for k in outs),
+        "  (void)n;",
+        "  GRACE_IVDEP",
+        "  for (long i = i0; i < i1; ++i) {",
+        *(f"    const double {v} = a{k}[{j}L * n + i];" for v, k, j in kernel.loads),
+        *_declarations(kernel, "    "),
+        *(f"    {s}" for s in kernel.body),
+        *(f"    r{o}[{j}L * n + i] = {v};" for o, j, v in kernel.stores),
+        "  }",
+        "}",
+        f"void {symbol}_batch(long n, const double* const* in, double* const* out, "
+        "int nthreads) {",
+        f"  grace_parallel({symbol}_range, n, in, out, nthreads);",
+        "}",
+    ]
+    return lines
+
+
+def _check_symbol(symbol: str) -> None:
+    if not _SYMBOL_RE.match(symbol):
+        raise ValueError(f"not a valid C identifier: {symbol!r}")
+
+
+@dataclass(frozen=True)
+class _Generated:
+    """C for one function (without prelude) and the digest embedded in it."""
+
+    symbol: str
+    code: str
+    digest: str
+
+
+def _function_c(fn: casadi.Function, symbol: str) -> _Generated:
+    """C for one function; it exports ``<symbol>_digest`` so stale libraries are detected."""
+    _check_symbol(symbol)
+    kernel = _lower(fn)
+    code = "\n".join([*_render_one(kernel, symbol), *_render_batch(kernel, symbol)]) + "\n"
+    digest = hashlib.sha256(code.encode()).hexdigest()
+    code += f'const char {symbol}_digest[] = "{digest}";\n'
+    return _Generated(symbol, code, digest)
+
+
+def generate_c(fn: casadi.Function, symbol: str) -> str:
+    """Self-contained C source for ``fn`` with two entry points.
+
+    ``void <symbol>_one(const double* in, double* out)``: one sample; ``in`` is all inputs
+    densified (column-major, structural zeros included) and concatenated, ``out`` likewise for
+    the outputs (structural zeros written as 0).  ``void <symbol>_batch(long n, const double*
+    const* in, double* const* out, int nthreads)``: ``in[k]`` points to input k as
+    struct-of-arrays (element j of sample i at ``in[k][j*n + i]``), ``out[k]`` likewise;
+    ``nthreads > 1`` splits the samples over threads.  Per-argument pointers (rather than one
+    concatenated block) let contiguous batched arguments be passed without a copy.
+
+    Raises :class:`NativeUnsupportedError` if an operation cannot be lowered.
+    """
+    return _PRELUDE + _function_c(fn, symbol).code
+
+
+def generate_library_c(functions: Mapping[str, casadi.Function]) -> str:
+    """One C translation unit for several functions; symbols from :func:`symbol_for`."""
+    return _PRELUDE + "".join(_function_c(f, symbol_for(n)).code for n, f in functions.items())
+
+
+def symbol_for(name: str) -> str:
+    """Deterministic, collision-resistant C symbol for a function name."""
+    tag = hashlib.sha1(name.encode()).hexdigest()[:8]
+    return f"grace_{tag}_{re.sub(r'[^A-Za-z0-9_]', '_', name)[:48]}"
+
+
+# --------------------------------------------------------------------------------------------
+# Compilation and caching
+# --------------------------------------------------------------------------------------------
+
+
+def find_compiler() -> list[str] | None:
+    """The C compiler command: ``$CC`` if set (``None`` if it does not exist), else cc/gcc/clang."""
+    env = os.environ.get("CC")
+    if env is not None:
+        cmd = shlex.split(env)
+        exe = shutil.which(cmd[0]) if cmd else None
+        return [exe, *cmd[1:]] if exe else None
+    for candidate in ("cc", "gcc", "clang"):
+        exe = shutil.which(candidate)
+        if exe:
+            return [exe]
+    return None
+
+
+@lru_cache(maxsize=8)
+def _compiler_identity(cmd: tuple[str, ...]) -> str:
+    """First line of ``--version``; part of the cache key so a compiler upgrade rebuilds."""
+    try:
+        proc = subprocess.run([*cmd, "--version"], capture_output=True, text=True, timeout=30)
+        return proc.stdout.splitlines()[0] if proc.stdout else proc.stderr.strip()
+    except (OSError, subprocess.SubprocessError) as err:
+        return f"unknown ({err})"
+
+
+@lru_cache(maxsize=1)
+def _cpu_fingerprint() -> str:
+    """-march=native code is CPU specific; a shared cache dir must not mix CPUs."""
+    text = ""
+    with contextlib.suppress(OSError):
+        text = Path("/proc/cpuinfo").read_text()
+    keep = [ln for ln in text.splitlines() if ln.startswith(("model name", "flags"))][:2]
+    return f"{platform.machine()}|{platform.processor()}|{'|'.join(keep)}"
+
+
+def default_cache_dir() -> Path:
+    """``$GRACE_DSL_CACHE/native`` or the per-user cache directory."""
+    env = os.environ.get("GRACE_DSL_CACHE")
+    if env:
+        return Path(env) / "native"
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("grace_dsl")) / "native"
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def _compile(cmd: list[str], flags: Sequence[str], srcs: list[Path], target: Path) -> str | None:
+    """Run one compilation; returns the error text or None on success."""
+    argv = [*cmd, *flags, *_LINK_FLAGS, "-o", str(target), *map(str, srcs), "-lm"]
+    try:
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=_COMPILE_TIMEOUT_S)
+    except (OSError, subprocess.SubprocessError) as err:
+        return str(err)
+    return None if proc.returncode == 0 else (proc.stderr.strip() or f"exit {proc.returncode}")
+
+
+def build_shared_library(sources: Mapping[str, str] | str, out_dir: Path, name: str) -> Path | None:
+    """Compile C ``sources`` (text, or file name -> text) into ``out_dir/<name>.so``.
+
+    Returns ``None`` (and logs why) if no compiler exists or compilation fails, so the caller
+    can fall back to CasADi.  The library is written to a temporary file and renamed into place,
+    so concurrent builders never expose a half-written ``.so``.  Tries :data:`FLAG_TIERS` in order.
+    """
+    cmd = find_compiler()
+    if cmd is None:
+        logger.info("no C compiler found (CC=%r); using CasADi's VM", os.environ.get("CC"))
+        return None
+    files = {f"{name}.c": sources} if isinstance(sources, str) else dict(sources)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / f"{name}.so"
+    with tempfile.TemporaryDirectory(prefix="grace_native_") as tmp:
+        srcs = [Path(tmp) / fname for fname in files]
+        for path, text in zip(srcs, files.values(), strict=True):
+            path.write_text(text)
+        fd, tmp_so = tempfile.mkstemp(dir=out_dir, prefix=f".{name}.", suffix=".so.tmp")
+        os.close(fd)
+        errors = []
+        for flags in FLAG_TIERS:
+            error = _compile(cmd, flags, srcs, Path(tmp_so))
+            if error is None:
+                os.replace(tmp_so, target)
+                return target
+            errors.append(error)
+        Path(tmp_so).unlink(missing_ok=True)
+    logger.warning("native build of %s failed; using CasADi's VM:\n%s", name, errors[-1][-2000:])
+    return None
+
+
+def _library_key(source: str) -> str:
+    cmd = find_compiler() or ["<none>"]
+    parts = [source, _compiler_identity(tuple(cmd)), repr(FLAG_TIERS), repr(_LINK_FLAGS),
+             _cpu_fingerprint(), str(ABI_VERSION)]
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:24]
+
+
+def _build_cached(generated: Sequence[_Generated], out_dir: Path | None) -> Path | None:
+    source = _PRELUDE + "".join(g.code for g in generated)
+    out_dir = default_cache_dir() if out_dir is None else out_dir
+    name = f"grace_{_library_key(source)}"
+    target = out_dir / f"{name}.so"
+    if target.exists():
+        return target
+    built = build_shared_library(source, out_dir, name)
+    if built is not None:
+        _atomic_write(out_dir / f"{name}.c", source)  # kept for inspection only
+    return built
+
+
+def build_native_library(functions: Mapping[str, casadi.Function],
+                         out_dir: Path | None = None) -> Path | None:
+    """Compile all ``functions`` into one cached ``.so`` named by a hash of code and flags.
+
+    A library that already exists is reused without invoking the compiler.  Raises
+    :class:`NativeUnsupportedError` if any function cannot be lowered; returns ``None`` if
+    compilation is impossible.
+    """
+    return _build_cached([_function_c(f, symbol_for(n)) for n, f in functions.items()], out_dir)
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluators
+# --------------------------------------------------------------------------------------------
+
+
+class Evaluator(Protocol):
+    """Common interface of native and CasADi evaluators."""
+
+    name: str
+    backend: str
+
+    def __call__(self, *args: ArrayLike) -> Outputs: ...
+
+    def batch(self, *args: ArrayLike, threads: int | None = None) -> Outputs: ...
+
+
+@lru_cache(maxsize=1)
+def _usable_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _auto_threads(n: int, threads: int | None) -> int:
+    if threads is not None:
+        return max(1, threads)
+    return max(1, min(_usable_cpus(), MAX_AUTO_THREADS, n // MIN_SAMPLES_PER_THREAD))
+
+
+@dataclass
+class _Buffers:
+    """One thread's reusable single-sample buffers, with views and raw pointers precomputed."""
+
+    inp: FloatArray
+    in_views: list[FloatArray]
+    out_views: list[FloatArray]
+    in_ptr: ctypes.c_void_p
+    out_ptr: ctypes.c_void_p
+
+    @staticmethod
+    def new(layout: _Layout) -> _Buffers:
+        inp, out = np.zeros(max(1, layout.n_in)), np.zeros(max(1, layout.n_out))
+
+        def views(buf: FloatArray, args: tuple[_Arg, ...]) -> list[FloatArray]:
+            return [buf[a.offset:a.offset + a.size].reshape(a.rows, a.cols, order="F")
+                    for a in args]
+
+        return _Buffers(inp, views(inp, layout.inputs), views(out, layout.outputs),
+                        ctypes.c_void_p(inp.ctypes.data), ctypes.c_void_p(out.ctypes.data))
+
+
+_PTRS = ctypes.POINTER(ctypes.c_void_p)
+_PY_SCALARS = frozenset((float, int, np.float64))
+
+
+class NativeFunction:
+    """A compiled kernel loaded with ctypes.
+
+    ``__call__`` evaluates one sample.  It reuses preallocated buffers that are *per thread*
+    (``threading.local``), so concurrent callers never share them, and calls the kernel through
+    ``PyDLL`` without releasing the GIL (releasing costs more than the kernel).  It returns fresh
+    arrays that never alias the buffers.  ``batch`` releases the GIL and may use native threads.
+    """
+
+    backend = "native"
+
+    def __init__(self, fn: casadi.Function, libs: tuple[ctypes.CDLL, ctypes.CDLL],
+                 symbol: str) -> None:
+        """``libs``: the library loaded as ``PyDLL`` (GIL held) and as ``CDLL`` (GIL released)."""
+        self.name = fn.name()
+        self._layout = _Layout.of(fn)
+        self._one = getattr(libs[0], f"{symbol}_one")
+        self._one.argtypes = (ctypes.c_void_p, ctypes.c_void_p)
+        self._one.restype = None
+        self._batch = getattr(libs[1], f"{symbol}_batch")
+        self._batch.argtypes = (ctypes.c_long, _PTRS, _PTRS, ctypes.c_int)
+        self._batch.restype = None
+        self._tls = threading.local()
+        self._n_args = len(self._layout.inputs)
+        self._scalar_args = all(a.size == 1 for a in self._layout.inputs)
+
+    def _buffers(self) -> _Buffers:
+        buffers = _Buffers.new(self._layout)
+        self._tls.buffers = buffers
+        return buffers
+
+    def __call__(self, *args: ArrayLike) -> Outputs:
+        try:
+            b: _Buffers = self._tls.buffers
+        except AttributeError:
+            b = self._buffers()
+        if self._scalar_args and len(args) == self._n_args:
+            inp = b.inp  # scalar inputs: offset k == argument k
+            for k, value in enumerate(args):
+                if type(value) in _PY_SCALARS:
+                    inp[k] = value
+                else:
+                    b.in_views[k][...] = self._layout.sample(k, value)
+        else:
+            self._layout.check_arity(args)
+            for k, value in enumerate(args):
+                b.in_views[k][...] = self._layout.sample(k, value)
+        self._one(b.in_ptr, b.out_ptr)
+        if len(b.out_views) == 1:
+            return b.out_views[0].copy()
+        return tuple(v.copy() for v in b.out_views)
+
+    def batch(self, *args: ArrayLike, threads: int | None = None) -> Outputs:
+        """Evaluate N samples; each output has shape (N, r, c).
+
+        Arguments with a single-sample shape are broadcast.  Outputs are transposed views of
+        struct-of-arrays buffers (not C-contiguous); copy them if you need contiguity.
+        ``threads`` defaults to one thread per :data:`MIN_SAMPLES_PER_THREAD` samples.
+        """
+        n, batched, fixed = self._layout.split_batch(args)
+        blocks = [_soa_block(arg, arr, fix, n)
+                  for arg, arr, fix in zip(self._layout.inputs, batched, fixed, strict=True)]
+        outs = [np.empty((a.size, n)) for a in self._layout.outputs]
+        in_ptrs = (ctypes.c_void_p * max(1, len(blocks)))(*[b.ctypes.data for b in blocks])
+        out_ptrs = (ctypes.c_void_p * max(1, len(outs)))(*[o.ctypes.data for o in outs])
+        self._batch(n, in_ptrs, out_ptrs, _auto_threads(n, threads))
+        return _pack([o.reshape(a.cols, a.rows, n).transpose(2, 1, 0)
+                      for a, o in zip(self._layout.outputs, outs, strict=True)])
+
+
+def _soa_block(arg: _Arg, arr: FloatArray | None, fixed: FloatArray, n: int) -> FloatArray:
+    """An input as a contiguous (size, N) block; zero-copy for contiguous scalar batches."""
+    if arr is None:
+        column = fixed.reshape(-1, order="F")[:, None]
+        return np.ascontiguousarray(np.broadcast_to(column, (arg.size, n)))
+    if arg.size == 1:
+        return np.ascontiguousarray(arr.reshape(1, n))
+    block = np.empty((arg.size, n))
+    block.reshape(arg.cols, arg.rows, n)[...] = arr.transpose(2, 1, 0)
+    return block
+
+
+class CasadiEvaluator:
+    """Fallback evaluator on CasADi's VM with the same interface as :class:`NativeFunction`."""
+
+    backend = "casadi"
+
+    def __init__(self, fn: casadi.Function, threads: int = 2) -> None:
+        self.name = fn.name()
+        self._fn = fn
+        self._layout = _Layout.of(fn)
+        self._threads = threads
+        self._maps: dict[tuple[int, int], casadi.Function] = {}
+
+    def __call__(self, *args: ArrayLike) -> Outputs:
+        self._layout.check_arity(args)
+        res = self._fn.call([self._layout.sample(k, a) for k, a in enumerate(args)])
+        return _pack([np.asarray(r.full(), dtype=np.float64) for r in res])
+
+    def _map(self, n: int, threads: int) -> casadi.Function:
+        key = (n, threads)
+        if key not in self._maps:
+            if len(self._maps) >= 4:
+                self._maps.pop(next(iter(self._maps)))
+            parallel = "thread" if threads > 1 else "serial"
+            self._maps[key] = (self._fn.map(n, parallel, threads) if threads > 1
+                               else self._fn.map(n, parallel))
+        return self._maps[key]
+
+    def batch(self, *args: ArrayLike, threads: int | None = None) -> Outputs:
+        """Evaluate N samples with ``Function.map``; each output has shape (N, r, c)."""
+        n, batched, fixed = self._layout.split_batch(args)
+        if n == 0:
+            return _pack([np.empty((0, a.rows, a.cols)) for a in self._layout.outputs])
+        mapped = [fix if arr is None else arr.transpose(1, 0, 2).reshape(a.rows, n * a.cols)
+                  for a, arr, fix in zip(self._layout.inputs, batched, fixed, strict=True)]
+        res = self._map(n, self._threads if threads is None else threads).call(mapped)
+        return _pack([np.asarray(r.full()).reshape(a.rows, n, a.cols).transpose(1, 0, 2)
+                      for a, r in zip(self._layout.outputs, res, strict=True)])
+
+
+def _load(path: Path, functions: Mapping[str, casadi.Function],
+          generated: Mapping[str, _Generated]) -> dict[str, NativeFunction]:
+    libs = (ctypes.PyDLL(str(path)), ctypes.CDLL(str(path)))
+    loaded: dict[str, NativeFunction] = {}
+    for name, fn in functions.items():
+        gen = generated[name]
+        try:
+            found = (ctypes.c_char * (len(gen.digest) + 1)).in_dll(libs[1], f"{gen.symbol}_digest")
+        except ValueError as err:
+            raise ValueError(f"{path}: no kernel for {name!r}") from err
+        if found.value.decode() != gen.digest:
+            raise ValueError(f"{path}: kernel for {name!r} is stale")
+        loaded[name] = NativeFunction(fn, libs, gen.symbol)
+    return loaded
+
+
+def load_native_library(path: Path, functions: Mapping[str, casadi.Function]
+                        ) -> dict[str, NativeFunction]:
+    """Wrap the kernels of a library built by :func:`build_native_library`.
+
+    Regenerates each function's code and compares its digest with the one in the library;
+    raises :class:`ValueError` on mismatch, so a stale library is never used silently.
+    """
+    generated = {n: _function_c(f, symbol_for(n)) for n, f in functions.items()}
+    return _load(path, functions, generated)
+
+
+def fast_functions(functions: Mapping[str, casadi.Function], cache_dir: Path | None = None,
+                   *, native: bool = True) -> dict[str, Evaluator]:
+    """Best evaluator for each function; all native ones share one cached ``.so``.
+
+    Functions that cannot be lowered, or all of them when no compiler works (or ``native`` is
+    false), get a :class:`CasadiEvaluator`.
+    """
+    result: dict[str, Evaluator] = {n: CasadiEvaluator(f) for n, f in functions.items()}
+    generated: dict[str, _Generated] = {}
+    for name, fn in functions.items() if native else ():
+        try:
+            generated[name] = _function_c(fn, symbol_for(name))
+        except NativeUnsupportedError as err:
+            logger.info("%s stays on CasADi's VM: %s", name, err)
+    path = _build_cached(list(generated.values()), cache_dir) if generated else None
+    if path is None:
+        return result
+    try:
+        result.update(_load(path, {n: functions[n] for n in generated}, generated))
+    except (OSError, ValueError) as err:
+        logger.warning("cannot load %s (%s); using CasADi's VM", path, err)
+    return result
+
+
+def fast_function(fn: casadi.Function, cache_dir: Path | None = None, *,
+                  native: bool = True) -> Evaluator:
+    """Best evaluator for ``fn``: compiled C if possible, else CasADi's VM."""
+    return fast_functions({fn.name(): fn}, cache_dir, native=native)[fn.name()]

@@ -1,0 +1,355 @@
+"""Resolve pass: files and imports -> a ``Program`` of visible, uniquely named concepts.
+
+Loads every file reachable through ``use`` from the library search path, reports missing modules,
+import cycles, duplicate concepts and members, unknown parts, links, joints and grasps, and
+concepts that contain themselves.  Names inside expressions are checked by the ``check`` pass,
+which knows their types.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from grace_dsl.lang import ast
+from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
+from grace_dsl.lang.parser import parse
+
+BASE_LINK = "base"
+BUILTIN_NAMES = frozenset(
+    "sin cos tan asin acos atan2 sqrt abs min max clamp dot cross norm normalize "
+    "rotx roty rotz rpy axis_angle trans inv union difference pi base".split()
+)
+
+
+@dataclass(frozen=True)
+class SourceFile:
+    path: str
+    text: str
+    module: ast.Module | None
+    dropped: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class ConceptEntry:
+    decl: ast.Concept
+    file: str
+
+
+@dataclass
+class Program:
+    files: dict[str, SourceFile] = field(default_factory=dict)
+    concepts: dict[str, ConceptEntry] = field(default_factory=dict)
+    visible: dict[str, dict[str, str]] = field(default_factory=dict)  # file -> name -> file
+    imports: dict[str, list[str]] = field(default_factory=dict)
+    roots: list[str] = field(default_factory=list)
+
+    def concept(self, name: str) -> ast.Concept:
+        return self.concepts[name].decl
+
+    def sources(self) -> dict[str, str]:
+        return {p: f.text for p, f in self.files.items()}
+
+    def dropped(self, file: str) -> frozenset[str]:
+        return self.files[file].dropped
+
+
+def stdlib_dir() -> Path:
+    """The standard concept library shipped with the package."""
+    return Path(__file__).resolve().parent.parent / "concepts"
+
+
+def resolve(paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()) -> tuple[
+    Program, list[Diagnostic]
+]:
+    """Load ``paths`` (files or directories of .eac files) and everything they import."""
+    diags: list[Diagnostic] = []
+    prog = Program()
+    search = [Path(p) for p in search_path] + [stdlib_dir()]
+    roots = _root_files(paths, diags)
+    prog.roots = [str(p) for p in roots]
+    queue = list(roots)
+    while queue:
+        path = queue.pop(0)
+        key = str(path)
+        if key in prog.files:
+            continue
+        src = _load(path, diags)
+        prog.files[key] = src
+        prog.imports[key] = []
+        if src.module is None:
+            continue
+        for use in src.module.uses:
+            target = _find_module(use.module, path.parent, search)
+            if target is None:
+                diags.append(_missing_module(use, path.parent, search))
+                continue
+            prog.imports[key].append(str(target))
+            queue.append(target)
+    diags += _import_cycles(prog)
+    diags += _collect_concepts(prog)
+    diags += _visibility(prog)
+    for entry in prog.concepts.values():
+        diags += _check_members(entry, prog)
+    diags += _part_cycles(prog)
+    return prog, diags
+
+
+# ---- files and modules --------------------------------------------------------------------------
+
+
+def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Path]:
+    files: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            files += sorted(q.resolve() for q in p.rglob("*.eac"))
+        elif p.is_file():
+            files.append(p.resolve())
+        else:
+            diags.append(error("E006", f"no such file or directory: {p}", ast.Span(str(p), 0, 0, 0, 0)))
+    return files
+
+
+def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = "it is not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else exc.strerror
+        diags.append(error("E006", f"cannot read {path}: {reason}", ast.Span(str(path), 0, 0, 0, 0)))
+        return SourceFile(str(path), "", None)
+    result = parse(text, str(path))
+    diags += result.diagnostics
+    return SourceFile(str(path), text, result.module, result.dropped)
+
+
+def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Path | None:
+    rel = Path(*module).with_suffix(".eac")
+    for base in [here, *search]:
+        candidate = base / rel
+        if candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+def _missing_module(use: ast.Use, here: Path, search: list[Path]) -> Diagnostic:
+    name = ".".join(use.module)
+    known = {p.stem for base in [here, *search] if base.is_dir() for p in base.glob("*.eac")}
+    hint = did_you_mean(name, known) or "looked in " + ", ".join(str(s) for s in [here, *search])
+    return error("E101", f"module `{name}` not found", use.span, hint)
+
+
+def _import_cycles(prog: Program) -> list[Diagnostic]:
+    diags: list[Diagnostic] = []
+    state: dict[str, int] = {}  # 1 visiting, 2 done
+
+    def visit(f: str, stack: list[str]) -> None:
+        state[f] = 1
+        for g in prog.imports.get(f, []):
+            if state.get(g) == 1:
+                cycle = " -> ".join(Path(x).stem for x in [*stack[stack.index(g):], f, g])
+                diags.append(error("E102", f"import cycle: {cycle}", _use_span(prog, f, g),
+                                   "move the shared concepts into a module both can import"))
+            elif g not in state:
+                visit(g, [*stack, f])
+        state[f] = 2
+
+    for f in prog.files:
+        if f not in state:
+            visit(f, [])
+    return diags
+
+
+def _use_span(prog: Program, f: str, target: str) -> ast.Span:
+    mod = prog.files[f].module
+    stem = Path(target).stem
+    if mod is not None:
+        for use in mod.uses:
+            if use.module[-1] == stem:
+                return use.span
+    return ast.Span(f, 0, 0, 0, 0)
+
+
+# ---- concepts -----------------------------------------------------------------------------------
+
+
+def _collect_concepts(prog: Program) -> list[Diagnostic]:
+    diags = []
+    for path, src in prog.files.items():
+        if src.module is None:
+            continue
+        for c in src.module.concepts:
+            first = prog.concepts.get(c.name)
+            if first is not None:
+                s = first.decl.name_span
+                diags.append(error("E104", f"concept `{c.name}` is defined twice", c.name_span,
+                                   f"first defined at {s.file}:{s.line}:{s.col}"))
+                continue
+            prog.concepts[c.name] = ConceptEntry(c, path)
+    return diags
+
+
+def _visibility(prog: Program) -> list[Diagnostic]:
+    diags = []
+    by_file: dict[str, list[str]] = {}
+    for name, entry in prog.concepts.items():
+        by_file.setdefault(entry.file, []).append(name)
+    for path, src in prog.files.items():
+        seen = {n: path for n in by_file.get(path, [])}
+        if src.module is not None:
+            for use, target in zip(src.module.uses, _targets(prog, path, src.module)):
+                if target is None:
+                    continue
+                exported = by_file.get(target, [])
+                wanted = use.names if use.names is not None else tuple(exported)
+                for i, name in enumerate(wanted):
+                    if name in exported:
+                        seen[name] = target
+                    elif use.names is not None:
+                        span = use.name_spans[i] if i < len(use.name_spans) else use.span
+                        diags.append(error("E103", f"`{name}` is not defined in module "
+                                           f"`{'.'.join(use.module)}`", span,
+                                           did_you_mean(name, exported)))
+        prog.visible[path] = seen
+    return diags
+
+
+def _targets(prog: Program, path: str, module: ast.Module) -> list[str | None]:
+    """The file each ``use`` of a module resolved to (None where it did not)."""
+    found = {Path(t).with_suffix("").parts[-len(u.module):]: t for u in module.uses
+             for t in prog.imports.get(path, [])
+             if Path(t).with_suffix("").parts[-len(u.module):] == u.module}
+    return [found.get(u.module) for u in module.uses]
+
+
+def member_names(m: object) -> str | None:
+    return getattr(m, "name", None)
+
+
+def flat_members(c: ast.Concept) -> Iterable[ast.Member_]:
+    """Every member of a concept, with the members of its links spliced in."""
+    for m in c.members:
+        yield m
+        if isinstance(m, ast.Link):
+            yield from m.members
+
+
+def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Diagnostic]:
+    assert isinstance(entry, ConceptEntry)
+    c, file = entry.decl, entry.file
+    diags: list[Diagnostic] = []
+    seen: dict[str, ast.Span] = {}
+    dropped = prog.dropped(file)
+    for m in flat_members(c):
+        if c.kind == "primitive" and not isinstance(m, (ast.Param, ast.Require)):
+            diags.append(error("E114", f"a primitive declares only `param` and `require`, not "
+                               f"`{type(m).__name__.lower()}`", m.span,
+                               "its geometry comes from grace_dsl.geometry"))
+        if isinstance(m, ast.Require):
+            continue
+        name = m.name
+        span = getattr(m, "name_span", m.span)
+        if name in BUILTIN_NAMES:
+            diags.append(error("E113", f"`{name}` is a built-in name and cannot be redefined",
+                               span, f"rename it, e.g. `{name}_`"))
+        elif name in seen:
+            first = seen[name]
+            diags.append(error("E105", f"`{name}` is already defined in `{c.name}`", span,
+                               f"first defined at line {first.line}"))
+        else:
+            seen[name] = span
+    visible = prog.visible.get(file, {})
+    links = {m.name for m in c.members if isinstance(m, ast.Link)}
+    joints = {m.name for m in c.members if isinstance(m, ast.Joint)}
+    grasps = {m.name for m in flat_members(c) if isinstance(m, ast.Grasp)}
+    for m in flat_members(c):
+        if isinstance(m, ast.Part) and m.concept not in visible and m.concept not in dropped:
+            hint = did_you_mean(m.concept, visible) or (
+                f"import it with `use ...{{{m.concept}}}`" if m.concept in prog.concepts else None)
+            diags.append(error("E107", f"unknown concept `{m.concept}`", m.concept_span, hint))
+        if isinstance(m, ast.Action):
+            if m.joint is not None and m.joint not in joints and m.joint not in dropped:
+                diags.append(error("E109", f"`{m.joint}` is not a joint of `{c.name}`",
+                                   m.joint_span, did_you_mean(m.joint, joints)))
+            for g in m.using:
+                if not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
+                    diags.append(error("E110", f"`{g}` is not a grasp of `{c.name}`", m.span,
+                                       did_you_mean(g, grasps)))
+    diags += _check_link_tree(c, links, dropped)
+    return diags
+
+
+def grasp_exists(prog: Program, c: ast.Concept, dotted: str) -> bool:
+    """Whether ``a.b.g`` names a grasp of part ``a``'s part ``b`` (or ``g`` one of ``c``)."""
+    head, _, rest = dotted.partition(".")
+    for m in flat_members(c):
+        if not rest and isinstance(m, ast.Grasp) and m.name == head:
+            return True
+        if rest and isinstance(m, ast.Part) and m.name == head and m.concept in prog.concepts:
+            return grasp_exists(prog, prog.concept(m.concept), rest)
+    return False
+
+
+def _check_link_tree(c: ast.Concept, links: set[str], dropped: frozenset[str]) -> list[Diagnostic]:
+    diags: list[Diagnostic] = []
+    parent_of: dict[str, str] = {}
+    known = links | {BASE_LINK}
+    for j in (m for m in c.members if isinstance(m, ast.Joint)):
+        for end, span in ((j.parent, j.parent_span), (j.child, j.child_span)):
+            if end not in known and end not in dropped:
+                diags.append(error("E108", f"unknown link `{end}`", span,
+                                   did_you_mean(end, known) or "declare it with `link name { ... }`"))
+        if j.child == BASE_LINK:
+            diags.append(error("E112", "`base` is the root link and cannot be a joint's child",
+                               j.child_span))
+        elif j.child in parent_of:
+            diags.append(error("E112", f"link `{j.child}` already has a parent joint",
+                               j.child_span, "a link hangs from exactly one joint"))
+        else:
+            parent_of[j.child] = j.parent
+    for link in sorted(links):
+        seen, node = {link}, link
+        while node in parent_of:
+            node = parent_of[node]
+            if node in seen:
+                diags.append(error("E112", f"the joints around link `{link}` form a cycle",
+                                   _link_span(c, link)))
+                break
+            seen.add(node)
+        else:
+            if node != BASE_LINK and node not in dropped:
+                diags.append(error("E112", f"link `{node}` is not attached to `base`",
+                                   _link_span(c, node), f"add `joint j : fixed(base -> {node})`"))
+    return diags
+
+
+def _link_span(c: ast.Concept, name: str) -> ast.Span:
+    return next((m.name_span for m in c.members if isinstance(m, ast.Link) and m.name == name),
+                c.name_span)
+
+
+def _part_cycles(prog: Program) -> list[Diagnostic]:
+    """A concept whose part tree reaches itself again would instantiate forever."""
+    diags = []
+    for name, entry in prog.concepts.items():
+        for first in (m for m in flat_members(entry.decl) if isinstance(m, ast.Part)):
+            chain = _path_back(prog, first.concept, name, (name, first.concept))
+            if chain is not None:
+                diags.append(error("E111", f"`{name}` contains itself: {' -> '.join(chain)}",
+                                   first.concept_span))
+                break
+    return diags
+
+
+def _path_back(prog: Program, cur: str, goal: str, path: tuple[str, ...]) -> tuple[str, ...] | None:
+    if cur == goal:
+        return path
+    entry = prog.concepts.get(cur)
+    if entry is None or len(path) > len(prog.concepts) + 1:
+        return None
+    for m in flat_members(entry.decl):
+        if isinstance(m, ast.Part) and (m.concept == goal or m.concept not in path):
+            found = _path_back(prog, m.concept, goal, (*path, m.concept))
+            if found is not None:
+                return found
+    return None
