@@ -1,0 +1,130 @@
+"""A compiled concept: its parameter schema, and instantiation with validated values.
+
+The schema comes from the manifest; evaluation goes through the fastest evaluator available
+(native code generated from the CasADi graph, or CasADi's VM).
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
+
+Evaluate = Callable[..., Any]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: SI units; ``lo``/``hi``/``default`` are floats or tuples for vectors."""
+
+    name: str
+    type: str
+    kind: str  # num | int | vec | bool | choice
+    dim: str | None
+    size: int
+    offset: int
+    lo: Any
+    hi: Any
+    default: Any
+    choices: tuple[str, ...] | None
+    help: str | None
+    doc: str
+
+    @staticmethod
+    def from_entry(e: Mapping[str, Any]) -> ParamSpec:
+        def tup(v: Any) -> Any:
+            return tuple(v) if isinstance(v, list) else v
+
+        return ParamSpec(e["name"], e["type"], e["kind"], e["dim"], e["size"], e["offset"],
+                         tup(e["lo"]), tup(e["hi"]), tup(e["default"]),
+                         tuple(e["choices"]) if e["choices"] else None, e["help"], e["doc"])
+
+    def encode(self, value: Any) -> np.ndarray:
+        """A user value as the entries of the parameter vector, validated."""
+        if self.kind == "choice":
+            assert self.choices is not None
+            if value not in self.choices:
+                raise ParameterError(f"{self.name} must be one of {list(self.choices)}, "
+                                     f"not {value!r}")
+            return np.array([float(self.choices.index(value))])
+        if self.kind == "bool":
+            if not isinstance(value, (bool, np.bool_)):
+                raise ParameterError(f"{self.name} is a bool, not {value!r}")
+            return np.array([float(value)])
+        try:
+            arr = np.asarray(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{self.name} must be a number{'s' if self.size > 1 else ''}, "
+                                 f"not {value!r}") from None
+        if arr.size != self.size:
+            raise ParameterError(f"{self.name} takes {self.size} value(s) ({self.type}), "
+                                 f"got {arr.size}")
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{self.name} must be finite, got {value!r}")
+        if self.kind == "int" and not np.all(arr == np.round(arr)):
+            raise ParameterError(f"{self.name} is an int, got {value!r}")
+        self._check_range(arr)
+        return arr
+
+    def _check_range(self, arr: np.ndarray) -> None:
+        if self.lo is None:
+            return
+        lo, hi = np.atleast_1d(self.lo), np.atleast_1d(self.hi)
+        if np.any(arr < lo - 1e-12) or np.any(arr > hi + 1e-12):
+            raise ParameterError(
+                f"{self.name} = {_show(arr, self.dim)} is outside its range "
+                f"[{_show(lo, self.dim)}, {_show(hi, self.dim)}] (SI units: "
+                f"{'metres' if self.dim == 'length' else 'radians' if self.dim == 'angle' else '-'})"
+            )
+
+    def decode(self, entries: np.ndarray) -> Any:
+        if self.kind == "choice":
+            assert self.choices is not None
+            return self.choices[int(round(entries[0]))]
+        if self.kind == "bool":
+            return bool(entries[0])
+        return tuple(float(x) for x in entries) if self.kind == "vec" else float(entries[0])
+
+
+def _show(arr: np.ndarray, dim: str | None) -> str:
+    vals = np.atleast_1d(arr)
+    if dim == "length":
+        parts = [f"{v * 1000:g}mm" for v in vals]
+    elif dim == "angle":
+        parts = [f"{np.degrees(v):g}deg" for v in vals]
+    else:
+        parts = [f"{v:g}" for v in vals]
+    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
+
+
+def suggest(name: str, known: Any) -> str:
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
+
+
+def pack_params(specs: tuple[ParamSpec, ...], values: Mapping[str, Any], concept: str) -> np.ndarray:
+    """The flat parameter vector of ``values`` (missing ones take their defaults)."""
+    by_name = {s.name: s for s in specs}
+    for name in values:
+        if name not in by_name:
+            raise UnknownNameError(f"{concept} has no parameter {name!r}" + suggest(name, by_name))
+    p = np.empty(sum(s.size for s in specs))
+    for s in specs:
+        if s.name in values:
+            p[s.offset : s.offset + s.size] = s.encode(values[s.name])
+        else:
+            p[s.offset : s.offset + s.size] = np.atleast_1d(np.asarray(s.default, dtype=float))
+    return p
+
+
+def check_requirements(residuals: np.ndarray, messages: list[str], concept: str,
+                       tol: float = 1e-12) -> None:
+    bad = [m or f"requirement {i + 1}" for i, (r, m) in enumerate(zip(residuals, messages))
+           if not r <= tol]
+    if bad:
+        raise RequirementError(f"{concept}: parameters violate: " + "; ".join(bad))

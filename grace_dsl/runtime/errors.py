@@ -1,0 +1,30 @@
+"""Typed errors of the runtime: each says what was wrong and what to do about it."""
+
+from __future__ import annotations
+
+
+class GraceError(Exception):
+    """Base of every error grace_dsl raises on purpose."""
+
+
+class CompileError(GraceError):
+    """A library did not compile; ``diagnostics`` holds every problem, ``str()`` renders them."""
+
+    def __init__(self, rendered: str, diagnostics: list[object]):
+        super().__init__(rendered)
+        self.diagnostics = diagnostics
+
+
+class UnknownNameError(GraceError, KeyError):
+    """A concept, parameter, joint, link, grasp or action that does not exist."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
+class ParameterError(GraceError, ValueError):
+    """A parameter value of the wrong shape, not finite, or outside its range."""
+
+
+class RequirementError(ParameterError):
+    """Parameter values that violate one of the concept's ``require`` constraints."""

@@ -1,0 +1,133 @@
+"""Load compiled units as a ``Library`` of ``Concept`` objects (the public runtime entry).
+
+A ``Concept`` exposes its schema (params, grasps, actions, joints, links, doc) from the manifest
+and evaluates its functions through the fastest evaluator available, loaded on first use.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator, Mapping, Sequence
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from grace_dsl.compiler import native
+from grace_dsl.compiler.build import BuildResult, Unit, build, load_unit
+from grace_dsl.lang.diagnostics import render_all
+from grace_dsl.runtime.concept import ParamSpec, pack_params, suggest
+from grace_dsl.runtime.errors import CompileError, UnknownNameError
+
+
+class _UnitFunctions:
+    """The evaluators of one unit, deserialized and loaded once, on first use."""
+
+    def __init__(self, unit: Unit):
+        self.unit = unit
+        self._evaluators: dict[str, Any] | None = None
+
+    def get(self, name: str) -> Any:
+        if self._evaluators is None:
+            data = json.loads((self.unit.dir / "functions.json").read_text())
+            fns = {n: ca.Function.deserialize(s) for n, s in data.items()}
+            self._evaluators = dict(native.fast_functions(fns, self.unit.dir))
+        return self._evaluators[name]
+
+
+class Concept:
+    """A compiled concept; ``instantiate`` it with parameter values to get an ``Instance``."""
+
+    def __init__(self, entry: Mapping[str, Any], functions: _UnitFunctions):
+        self.entry = entry
+        self._functions = functions
+        self.name: str = entry["name"]
+        self.doc: str = entry["doc"]
+        self.params: tuple[ParamSpec, ...] = tuple(ParamSpec.from_entry(p) for p in entry["params"])
+        self.grasps: dict[str, dict[str, Any]] = {g["name"]: g for g in entry["grasps"]}
+        self.actions: dict[str, dict[str, Any]] = {a["name"]: a for a in entry["actions"]}
+        self.joints: dict[str, dict[str, Any]] = {j["name"]: j for j in entry["joints"]}
+        self.links: tuple[str, ...] = tuple(link["name"] for link in entry["links"])
+        self.parts: dict[str, str] = dict(entry["parts"])
+
+    def __repr__(self) -> str:
+        return f"<Concept {self.name}: {len(self.params)} params, {len(self.grasps)} grasps>"
+
+    @cached_property
+    def moving_joints(self) -> tuple[str, ...]:
+        return tuple(j["name"] for j in self.entry["joints"] if j["index"] is not None)
+
+    def function(self, kind: str, name: str = "") -> Any:
+        key = f"{kind}:{name}" if name else kind
+        try:
+            return self._functions.get(self.entry["functions"][key])
+        except KeyError:
+            raise UnknownNameError(f"{self.name} has no {kind} {name!r}") from None
+
+    def defaults(self) -> dict[str, Any]:
+        return {p.name: p.default if p.kind != "choice" else p.decode(
+            np.atleast_1d(p.default)) for p in self.params}
+
+    def pack(self, **values: Any) -> np.ndarray:
+        """The flat SI parameter vector of ``values`` (defaults for the rest), validated."""
+        return pack_params(self.params, values, self.name)
+
+    def instantiate(self, pose: Any = None, joints: Mapping[str, float] | None = None,
+                    **params: Any) -> Any:
+        """An instance at ``pose`` (4x4, world from concept) with joint values and parameters."""
+        from grace_dsl.runtime.instance import Instance
+
+        return Instance.create(self, pose, joints or {}, params)
+
+
+class Library(Mapping[str, Concept]):
+    """Every concept of a build, by name."""
+
+    def __init__(self, units: Sequence[Unit], result: BuildResult | None = None):
+        self.result = result
+        self._concepts: dict[str, Concept] = {}
+        for unit in units:
+            functions = _UnitFunctions(unit)
+            for name, entry in unit.concepts.items():
+                self._concepts[name] = Concept(entry, functions)
+
+    def __getitem__(self, name: str) -> Concept:
+        try:
+            return self._concepts[name]
+        except KeyError:
+            raise UnknownNameError(f"no concept {name!r} in the library"
+                                   + suggest(name, self._concepts)) from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._concepts)
+
+    def __len__(self) -> int:
+        return len(self._concepts)
+
+
+def compile_paths(paths: Sequence[str | Path], cache_dir: Path | None = None,
+                  search_path: Sequence[str | Path] = ()) -> Library:
+    """Compile .eac files or directories (and what they import) into a ``Library``.
+
+    Raises ``CompileError`` carrying every diagnostic when the sources have errors.
+    """
+    result = build(paths, cache_dir, search_path)
+    if not result.ok:
+        raise CompileError(render_all(result.diagnostics, result.sources), result.diagnostics)
+    return Library(result.units, result)
+
+
+def load_library(cache_dir: Path | None = None) -> Library:
+    """The standard concept library, compiled once and cached."""
+    from grace_dsl.compiler.resolve import stdlib_dir
+
+    return compile_paths([stdlib_dir()], cache_dir)
+
+
+def load_artifact(directory: str | Path) -> Library:
+    """A library from an artifact directory written by ``eacc build -o DIR``."""
+    root = Path(directory)
+    manifest = json.loads((root / "manifest.json").read_text())
+    return Library([load_unit(root / "units" / key) for key in manifest["units"]])
