@@ -1,6 +1,7 @@
 """Numeric backends that lowering writes to: CasADi SX, SymPy and NumPy.
 
-Lowering is written once against this small set of scalar operations; each backend gives them
+(The SymPy backend lives in ``sympy_backend`` so that importing the runtime does not import
+SymPy.)  Lowering is written once against this small set of scalar operations; each backend gives them
 its own meaning: symbolic graphs for fast code (CasADi), exact formulas for people and prompts
 (SymPy), and plain numbers for checks at the defaults (NumPy, elementwise over arrays too).
 Arithmetic (+ - * / and unary -) uses Python operators, which all three types support.
@@ -9,24 +10,24 @@ Arithmetic (+ - * / and unary -) uses Python operators, which all three types su
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
 import numpy as np
-import sympy as sp
 
 from grace_dsl.compiler.types import UNIT_FACTORS
 from grace_dsl.lang import ast
 
 
-def literal_fraction(n: ast.Number) -> tuple[sp.Rational, bool]:
+def literal_fraction(n: ast.Number) -> tuple[Fraction, bool]:
     """A literal as an exact rational of SI units, and whether it is a multiple of pi."""
-    value = sp.Rational(n.text)
+    value = Fraction(n.text)
     if n.unit is None:
         return value, False
     _, num, den, with_pi = UNIT_FACTORS[n.unit]
-    return value * sp.Rational(num, den), with_pi
+    return value * Fraction(num, den), with_pi
 
 
 def literal_value(n: ast.Number) -> float:
@@ -179,83 +180,6 @@ class CasadiBackend:
         return ca.if_else(c, 1.0, 0.0)
 
 
-@dataclass(frozen=True)
-class SympyBackend:
-    name: str = "sympy"
-
-    def literal(self, n: ast.Number) -> Any:
-        frac, with_pi = literal_fraction(n)
-        return frac * sp.pi if with_pi else frac
-
-    def num(self, x: float) -> Any:
-        return sp.nsimplify(x) if float(x).is_integer() else sp.Float(x)
-
-    pi = sp.pi
-
-    def sin(self, x: Any) -> Any:
-        return sp.sin(x)
-
-    def cos(self, x: Any) -> Any:
-        return sp.cos(x)
-
-    def tan(self, x: Any) -> Any:
-        return sp.tan(x)
-
-    def asin(self, x: Any) -> Any:
-        return sp.asin(x)
-
-    def acos(self, x: Any) -> Any:
-        return sp.acos(x)
-
-    def atan2(self, y: Any, x: Any) -> Any:
-        return sp.atan2(y, x)
-
-    def sqrt(self, x: Any) -> Any:
-        return sp.sqrt(x)
-
-    def abs(self, x: Any) -> Any:
-        return sp.Abs(x)
-
-    def min(self, a: Any, b: Any) -> Any:
-        return sp.Min(a, b)
-
-    def max(self, a: Any, b: Any) -> Any:
-        return sp.Max(a, b)
-
-    def pow(self, a: Any, b: Any) -> Any:
-        return sp.Pow(a, b)
-
-    def if_else(self, c: Any, a: Any, b: Any) -> Any:
-        if c is sp.true:
-            return a
-        if c is sp.false:
-            return b
-        return sp.Piecewise((a, c), (b, True))
-
-    def compare(self, op: str, a: Any, b: Any) -> Any:
-        return {"<": sp.Lt, "<=": sp.Le, ">": sp.Gt, ">=": sp.Ge,
-                "==": sp.Eq, "!=": sp.Ne}[op](a, b)
-
-    def and_(self, a: Any, b: Any) -> Any:
-        return sp.And(a, b)
-
-    def or_(self, a: Any, b: Any) -> Any:
-        return sp.Or(a, b)
-
-    def not_(self, a: Any) -> Any:
-        return sp.Not(a)
-
-    def boolean(self, b: bool) -> Any:
-        return sp.true if b else sp.false
-
-    def truth(self, x: Any) -> Any:
-        return sp.Ne(x, 0)
-
-    def as_number(self, c: Any) -> Any:
-        return self.if_else(c, sp.Integer(1), sp.Integer(0))
-
-
-Backend = NumpyBackend | CasadiBackend | SympyBackend
+Backend = Any  # NumpyBackend | CasadiBackend | sympy_backend.SympyBackend: same methods
 NUMPY = NumpyBackend()
 CASADI = CasadiBackend()
-SYMPY = SympyBackend()

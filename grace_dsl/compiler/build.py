@@ -25,8 +25,6 @@ import platformdirs
 
 from grace_dsl.compiler import native
 from grace_dsl.compiler.check import Checked, check
-from grace_dsl.compiler.functions import casadi_functions, sympy_model
-from grace_dsl.compiler.manifest import concept_entry
 from grace_dsl.compiler.resolve import Program, resolve
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, error, has_errors
@@ -150,6 +148,9 @@ def _concepts_of(prog: Program, file: str) -> list[str]:
 
 def _write_unit(unit_dir: Path, prog: Program, checked: Checked, file: str, key: str,
                 use_native: bool) -> None:
+    from grace_dsl.compiler.functions import casadi_functions, sympy_model
+    from grace_dsl.compiler.manifest import concept_entry
+
     tmp = Path(tempfile.mkdtemp(prefix=f"{key}-", dir=unit_dir.parent.parent / "tmp"))
     try:
         entries: dict[str, dict[str, Any]] = {}

@@ -12,9 +12,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
-import sympy as sp
 
-from grace_dsl.compiler.backends import CASADI, SYMPY
+from grace_dsl.compiler.backends import CASADI
 from grace_dsl.compiler.check import Checked
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.lower import Lowered, lower
@@ -101,6 +100,9 @@ def force_direction(low: Lowered, action: str, x: list[Any]) -> Any:
 
 def sympy_model(checked: Checked, name: str) -> Lowered:
     """The same model with exact SymPy expressions (free grasp parameters by their own names)."""
+    import sympy as sp
+
+    from grace_dsl.compiler.sympy_backend import SYMPY
     def make(kind: str, sym: str) -> sp.Symbol:
         label = {"p": sym, "q": f"q_{sym}", "g": sym.split(":", 1)[-1]}[kind]
         return sp.Symbol(label, real=True)
@@ -108,11 +110,15 @@ def sympy_model(checked: Checked, name: str) -> Lowered:
     return lower(checked, name, SYMPY, make)
 
 
-def sympy_matrix(rows: Any) -> sp.Matrix:
+def sympy_matrix(rows: Any) -> Any:
+    import sympy as sp
+
     return sp.Matrix([[_exact(v) for v in row] for row in rows])
 
 
 def _exact(v: Any) -> Any:
+    import sympy as sp
+
     if isinstance(v, (int, float)):
         return sp.Integer(int(v)) if float(v).is_integer() else sp.Float(v)
     return v

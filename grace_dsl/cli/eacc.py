@@ -1,0 +1,246 @@
+"""``eacc``: the .eac compiler's command line (thin: parse arguments, call the library, print).
+
+Exit codes: 0 success, 1 diagnostics (or files that need formatting), 2 usage errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from grace_dsl.cli.output import console, fmt_value, print_json, print_table, print_text
+from grace_dsl.compiler.build import build, export_library, front_end
+from grace_dsl.compiler.resolve import stdlib_dir
+from grace_dsl.lang.diagnostics import Diagnostic, has_errors, render_all
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.run(args))
+    except KeyboardInterrupt:
+        return 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="eacc", description="Compile executable analytic concepts.")
+    sub = p.add_subparsers(dest="command")
+
+    c = sub.add_parser("check", help="report every problem in .eac files")
+    c.add_argument("paths", nargs="+", help=".eac files or directories")
+    c.add_argument("--json", action="store_true", help="machine-readable diagnostics")
+    c.set_defaults(run=cmd_check)
+
+    b = sub.add_parser("build", help="compile .eac files into a cached library artifact")
+    b.add_argument("paths", nargs="+")
+    b.add_argument("-o", "--output", type=Path, help="write a self-contained artifact here")
+    b.add_argument("--cache-dir", type=Path, help="cache directory (default: user cache)")
+    b.add_argument("--no-native", action="store_true", help="skip compiling C kernels")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(run=cmd_build)
+
+    f = sub.add_parser("fmt", help="format .eac files in place (or check them)")
+    f.add_argument("paths", nargs="+", help="files or directories; `-` reads stdin")
+    f.add_argument("--check", action="store_true", help="exit 1 if a file is not formatted")
+    f.set_defaults(run=cmd_fmt)
+
+    ls = sub.add_parser("list", help="list the concepts of a library")
+    ls.add_argument("paths", nargs="*", help="default: the standard library")
+    ls.add_argument("--json", action="store_true")
+    ls.set_defaults(run=cmd_list)
+
+    e = sub.add_parser("explain", help="parameters, grasps, actions and formulas of a concept")
+    e.add_argument("concept")
+    e.add_argument("paths", nargs="*", help="default: the standard library")
+    e.add_argument("--json", action="store_true")
+    e.set_defaults(run=cmd_explain)
+    return p
+
+
+# ---- check / build ------------------------------------------------------------------------------
+
+
+def _report(diags: list[Diagnostic], sources: dict[str, str], as_json: bool) -> None:
+    if as_json:
+        return
+    if diags:
+        err = console(stderr=True)
+        text = render_all(diags, sources)
+        if err.is_terminal:
+            err.print(text, style="red" if has_errors(diags) else "yellow", markup=False)
+        else:
+            sys.stderr.write(text + "\n")
+        n = sum(d.severity == "error" for d in diags)
+        sys.stderr.write(f"{n} error{'s' if n != 1 else ''}\n")
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    prog, checked, diags = front_end(args.paths)
+    if args.json:
+        print_json({"ok": not has_errors(diags), "files": list(prog.files),
+                    "concepts": sorted(prog.concepts),
+                    "diagnostics": [d.to_json() for d in diags]})
+    else:
+        _report(diags, prog.sources(), False)
+        if not has_errors(diags):
+            print_text(f"ok: {len(prog.concepts)} concepts in {len(prog.files)} files")
+    return 1 if has_errors(diags) else 0
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    out = console(stderr=True)
+    if out.is_terminal and not args.json:
+        from rich.progress import Progress
+
+        with Progress(console=out, transient=True) as bar:
+            task = bar.add_task("compiling", total=None)
+
+            def progress(file: str, i: int, n: int) -> None:
+                bar.update(task, total=n, completed=i, description=f"compiling {Path(file).name}")
+
+            result = build(args.paths, args.cache_dir, use_native=not args.no_native,
+                           progress=progress)
+    else:
+        result = build(args.paths, args.cache_dir, use_native=not args.no_native)
+    diags = list(result.diagnostics)
+    if result.ok and args.output is not None:
+        diags += export_library(result, args.output)
+    ok = not has_errors(diags)
+    if args.json:
+        print_json({"ok": ok, "diagnostics": [d.to_json() for d in diags],
+                    "cache_dir": str(result.cache_dir) if result.cache_dir else None,
+                    "output": str(args.output) if args.output else None,
+                    "units": [{"file": u.file, "key": u.key, "concepts": sorted(u.concepts),
+                               "rebuilt": u.file in result.rebuilt} for u in result.units]})
+        return 0 if ok else 1
+    _report(diags, result.sources, False)
+    if ok:
+        n = sum(len(u.concepts) for u in result.units)
+        where = args.output or result.cache_dir
+        print_text(f"built {n} concepts from {len(result.units)} files "
+                   f"({len(result.rebuilt)} compiled, {len(result.units) - len(result.rebuilt)} "
+                   f"cached) -> {where}")
+    return 0 if ok else 1
+
+
+# ---- fmt ----------------------------------------------------------------------------------------
+
+
+def cmd_fmt(args: argparse.Namespace) -> int:
+    from grace_dsl.lang.formatter import format_source
+
+    status = 0
+    for path in _eac_files(args.paths):
+        text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
+        result = format_source(text, path if path != "-" else "<stdin>")
+        if result.text is None:
+            _report(list(result.diagnostics), {path: text}, False)
+            status = 1
+            continue
+        if path == "-":
+            sys.stdout.write(result.text)
+        elif result.text != text:
+            if args.check:
+                print_text(f"would reformat {path}")
+                status = 1
+            else:
+                Path(path).write_text(result.text, encoding="utf-8")
+                print_text(f"formatted {path}")
+    return status
+
+
+def _eac_files(paths: Sequence[str]) -> list[str]:
+    files: list[str] = []
+    for p in paths:
+        path = Path(p)
+        files += [str(f) for f in sorted(path.rglob("*.eac"))] if path.is_dir() else [p]
+    return files
+
+
+# ---- list / explain -----------------------------------------------------------------------------
+
+
+def _library(paths: Sequence[str]) -> Any:
+    from grace_dsl.runtime.errors import CompileError
+    from grace_dsl.runtime.library import compile_paths
+
+    try:
+        return compile_paths(list(paths) or [stdlib_dir()])
+    except CompileError as exc:
+        sys.stderr.write(str(exc) + "\n")
+        return None
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    lib = _library(args.paths)
+    if lib is None:
+        return 1
+    concepts = [lib[n] for n in lib]
+    if args.json:
+        print_json([{"name": c.name, "kind": c.entry["kind"], "file": c.entry["file"],
+                     "doc": c.doc, "params": [p.name for p in c.params],
+                     "grasps": list(c.grasps), "actions": list(c.actions),
+                     "joints": list(c.joints)} for c in concepts])
+        return 0
+    rows = [[c.name, c.entry["kind"], c.entry["file"], str(len(c.params)),
+             ", ".join(c.grasps) or "-", ", ".join(c.actions) or "-",
+             (c.doc.splitlines() or [""])[0]] for c in concepts]
+    print_table(f"{len(rows)} concepts", ["concept", "kind", "file", "params", "grasps",
+                                          "actions", "synopsis"], rows)
+    return 0
+
+
+def cmd_explain(args: argparse.Namespace) -> int:
+    lib = _library(args.paths)
+    if lib is None:
+        return 1
+    if args.concept not in lib:
+        try:
+            lib[args.concept]
+        except KeyError as exc:
+            sys.stderr.write(f"eacc: {exc}\n")
+        return 1
+    c = lib[args.concept]
+    if args.json:
+        print_json(c.entry)
+        return 0
+    print_text(f"{c.name} ({c.entry['kind']}, {c.entry['file']})", style="bold")
+    if c.doc:
+        print_text(c.doc)
+    print_table("parameters", ["name", "type", "range", "default", "meaning"],
+                [[p.name, p.type, f"[{fmt_value(p.lo, p.dim)}, {fmt_value(p.hi, p.dim)}]"
+                  if p.lo is not None else "-",
+                  fmt_value(p.decode([p.default]) if p.kind == "choice" else p.default, p.dim),
+                  " ".join(x for x in (p.help or "", p.doc) if x)] for p in c.params])
+    if c.joints:
+        print_table("joints", ["name", "kind", "parent -> child", "doc"],
+                    [[j["name"], j["kind"], f"{j['parent']} -> {j['child']}", j["doc"]]
+                     for j in c.joints.values()])
+    for g in c.grasps.values():
+        free = ", ".join(f["name"] for f in g["free"]) or "no free parameters"
+        print_text(f"grasp {g['name']}({free}) on link {g['link']}", style="bold")
+        if g["doc"]:
+            print_text("  " + g["doc"].replace("\n", "\n  "))
+        if "." in g["name"]:
+            part = g["name"].rsplit(".", 1)[0]
+            print_text(f"  from part {part} ({c.parts.get(part, '?')}): its formula there, placed "
+                       "by the part's pose and the joints above it")
+        else:
+            print_text(f"  G = {g['source']}")
+            print_text(f"    = {g['formula']['text']}")
+    if c.actions:
+        print_table("actions", ["name", "verb", "along", "sense", "using", "synopsis"],
+                    [[a["name"], a["verb"], a["joint"] or "fixed direction", a["sense"],
+                      ", ".join(a["using"]) or "-", a["doc"]] for a in c.actions.values()])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,67 @@
+"""Terminal output: rich tables on a terminal, plain aligned text when piped, JSON on request."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+
+def console(stderr: bool = False) -> Console:
+    return Console(stderr=stderr, highlight=False, soft_wrap=True)
+
+
+def print_json(data: Any) -> None:
+    sys.stdout.write(json.dumps(data, indent=2, default=_jsonable) + "\n")
+
+
+def _jsonable(v: Any) -> Any:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def print_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
+    out = console()
+    if out.is_terminal:
+        table = Table(title=title, title_justify="left")
+        for c in columns:
+            table.add_column(c, overflow="fold")
+        for row in rows:
+            table.add_row(*row)
+        out.print(table)
+        return
+    widths = [max(len(str(x)) for x in [c, *(r[i] for r in rows)]) for i, c in enumerate(columns)]
+    lines = [title, "  ".join(c.ljust(w) for c, w in zip(columns, widths)).rstrip()]
+    lines += ["  ".join(str(x).ljust(w) for x, w in zip(r, widths)).rstrip() for r in rows]
+    sys.stdout.write("\n".join(lines) + "\n")
+
+
+def print_text(text: str, style: str | None = None) -> None:
+    out = console()
+    if out.is_terminal:
+        out.print(text, style=style, markup=False)
+    else:
+        sys.stdout.write(text + "\n")
+
+
+def fmt_value(value: Any, dim: str | None) -> str:
+    """An SI value as people read it: millimetres for lengths, degrees for angles."""
+    import math
+
+    if value is None:
+        return "-"
+    if isinstance(value, (list, tuple)):
+        return "(" + ", ".join(fmt_value(v, dim) for v in value) + ")"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if dim == "length":
+        return f"{value * 1000:g}mm"
+    if dim == "angle":
+        return f"{math.degrees(value):g}deg"
+    return f"{value:g}"
