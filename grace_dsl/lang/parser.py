@@ -550,10 +550,9 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
     span = _tok_span(path, tok)
     found = f"`{tok.value}`" if tok.type not in ("DOC", "TDOC") else "a doc comment"
     message = f"unexpected {found}; expected {_expected_list(set(exc.expected))}"
-    prev = _unfinished_before(exc)
+    prev = _unfinished_before(exc, text)
     if prev is not None:
-        span = ast.Span(path, prev.end_line or 0, prev.end_column or 0,
-                        prev.end_line or 0, (prev.end_column or 0) + 1)
+        span = ast.Span(path, prev[0], prev[1], prev[0], prev[1] + 1)
         message = f"declaration ends too early, before `{tok.value}` on line {tok.line}; " + (
             f"expected {_expected_list(set(exc.expected))}")
     return error("E002", message, span, _token_hint(exc, text))
@@ -580,7 +579,7 @@ def _blank_declaration(text: str, exc: UnexpectedInput) -> tuple[str, str | None
     if isinstance(exc, UnexpectedEOF) or getattr(getattr(exc, "token", None), "type", "") == "$END":
         return None
     lines = text.split("\n")
-    err = max(0, min(len(lines) - 1, _error_line(exc) - 1))
+    err = max(0, min(len(lines) - 1, _error_line(exc, text) - 1))
     start = err
     while start > 0 and not _starts_declaration(lines[start]):
         start -= 1
@@ -597,20 +596,26 @@ def _blank_declaration(text: str, exc: UnexpectedInput) -> tuple[str, str | None
     return "\n".join(lines[:start] + blanked + lines[end:]), name
 
 
-def _error_line(exc: UnexpectedInput) -> int:
+def _error_line(exc: UnexpectedInput, text: str) -> int:
     """The line of the broken declaration: the one before, when the error is at a fresh start."""
-    prev = _unfinished_before(exc)
-    return prev.line if prev is not None and prev.line else exc.line
+    prev = _unfinished_before(exc, text)
+    return prev[0] if prev is not None else exc.line
 
 
-def _unfinished_before(exc: UnexpectedInput) -> Token | None:
-    """The last token of the previous declaration, if the error is that it never finished."""
+def _unfinished_before(exc: UnexpectedInput, text: str) -> tuple[int, int] | None:
+    """(line, column after) of the last code before the error, if the error is that the
+    previous declaration never finished: the unexpected token starts a new declaration line."""
     tok = getattr(exc, "token", None)
-    history = getattr(exc, "token_history", None) or []
-    if tok is None or not history or tok.value not in SYNC_KEYWORDS | {"}"}:
+    if tok is None or tok.value not in SYNC_KEYWORDS | {"}"} or not tok.line:
         return None
-    prev: Token = history[-1]
-    return prev if prev.line is not None and prev.line < (tok.line or 0) else None
+    lines = text.split("\n")
+    if lines[tok.line - 1][: (tok.column or 1) - 1].strip():
+        return None
+    for number in range(tok.line - 1, 0, -1):
+        code = lines[number - 1].split("//")[0].rstrip()
+        if code:
+            return number, len(code) + 1
+    return None
 
 
 def _starts_declaration(line: str) -> bool:

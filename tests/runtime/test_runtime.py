@@ -1,0 +1,131 @@
+"""The runtime API against independent computations (numpy, finite differences)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import grace_dsl as eac
+
+
+@pytest.fixture(scope="module")
+def lib() -> eac.Library:
+    return eac.load_library()
+
+
+def rot(axis: str, a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    m = {"x": [[1, 0, 0], [0, c, -s], [0, s, c]], "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
+         "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]]}[axis]
+    out = np.eye(4)
+    out[:3, :3] = m
+    return out
+
+
+def paper_curve_handle_grasp(theta: float, r_out: float) -> np.ndarray:
+    """The paper's G = R(0, 0, theta) T(0, -R_o, 0) R(pi/2, 0, pi/2), written independently."""
+    t = np.eye(4)
+    t[1, 3] = -r_out
+    r_pi = rot("z", np.pi / 2) @ rot("y", 0.0) @ rot("x", np.pi / 2)
+    return rot("z", theta) @ t @ r_pi
+
+
+def random_pose(rng: np.random.Generator) -> np.ndarray:
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = q, rng.normal(size=3)
+    return m
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(radian=st.floats(np.radians(20), np.radians(180)), r_in=st.floats(0.005, 0.15),
+       gap=st.floats(0.002, 0.05), u=st.floats(-1, 1), seed=st.integers(0, 2**16))
+def test_curve_handle_grasp_matches_the_paper(lib, radian, r_in, gap, u, seed) -> None:  # type: ignore[no-untyped-def]
+    r_out = r_in + gap
+    pose = random_pose(np.random.default_rng(seed))
+    inst = lib["CurveHandle"].instantiate(pose=pose, radian=radian, r_in=r_in, r_out=r_out)
+    lo, hi = inst.grasp_range("pull")["theta"]
+    assert (lo, hi) == pytest.approx((-radian / 2, radian / 2))
+    theta = u * radian / 2
+    want = pose @ paper_curve_handle_grasp(theta, r_out)
+    np.testing.assert_allclose(inst.grasp("pull", theta=theta), want, atol=1e-12)
+
+
+def test_grasps_spread_over_the_range(lib) -> None:  # type: ignore[no-untyped-def]
+    inst = lib["CurveHandle"].instantiate(radian=np.pi / 2)
+    poses = inst.grasps("pull", n=5)
+    assert poses.shape == (5, 4, 4)
+    for pose, theta in zip(poses, np.linspace(-np.pi / 4, np.pi / 4, 5)):
+        np.testing.assert_allclose(pose, inst.grasp("pull", theta=theta), atol=1e-12)
+
+
+def test_door_force_is_the_velocity_of_the_grasp_point(lib) -> None:  # type: ignore[no-untyped-def]
+    """The pull direction equals the finite-difference motion of the attached gripper."""
+    pose = random_pose(np.random.default_rng(3))
+    for side in ("left", "right"):
+        door = lib["SunkenDoor"].instantiate(pose=pose, hinge_side=side, joints={"hinge": 0.4})
+        grasp = door.grasp("handle.pull", theta=0.2)
+        path = door.follow("open", grasp, to=0.4 + 1e-6, steps=2)
+        velocity = (path[1, :3, 3] - path[0, :3, 3]) / 1e-6
+        np.testing.assert_allclose(door.force("open", grasp), velocity / np.linalg.norm(velocity),
+                                   atol=1e-5)
+        np.testing.assert_allclose(door.force("close", grasp), -door.force("open", grasp))
+
+
+def test_door_opens_towards_the_front(lib) -> None:  # type: ignore[no-untyped-def]
+    for side in ("left", "right"):
+        closed = lib["SunkenDoor"].instantiate(hinge_side=side)
+        opened = lib["SunkenDoor"].instantiate(hinge_side=side, joints={"hinge": 0.5})
+        assert opened.grasp("handle.pull")[2, 3] > closed.grasp("handle.pull")[2, 3] + 0.05
+
+
+def test_follow_keeps_the_grasp_on_the_moving_link(lib) -> None:  # type: ignore[no-untyped-def]
+    door = lib["SunkenDoor"].instantiate(joints={"hinge": 0.1})
+    grasp = door.grasp("handle.pull")
+    path = door.follow("open", grasp, to=1.5, steps=9)
+    for k, q in enumerate(np.linspace(0.1, 1.5, 9)):
+        moved = lib["SunkenDoor"].instantiate(joints={"hinge": q})
+        np.testing.assert_allclose(path[k], moved.grasp("handle.pull"), atol=1e-12)
+
+
+def test_handle_part_matches_the_handle_concept(lib) -> None:  # type: ignore[no-untyped-def]
+    """The door's handle grasp is the handle's grasp placed by the part pose."""
+    door = lib["SunkenDoor"].instantiate(**{"handle.r_out": 0.05})
+    handle = lib["CurveHandle"].instantiate(r_out=0.05)
+    p = door.params
+    z = p["size"][2] / 2 - p["handle.r_in"] * np.cos(p["handle.radian"] / 2)
+    place = np.eye(4)
+    place[:3, 3] = [p["handle_at"][0], p["handle_at"][1], z]
+    place = place @ rot("x", -np.pi / 2)
+    np.testing.assert_allclose(door.grasp("handle.pull", theta=0.3),
+                               place @ handle.grasp("pull", theta=0.3), atol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, error, text", [
+    ({"radian": 5.0}, eac.ParameterError, "outside its range"),
+    ({"radian": float("nan")}, eac.ParameterError, "finite"),
+    ({"r_in": 0.047}, eac.RequirementError, "the bar needs material"),
+    ({"raidan": 1.0}, eac.UnknownNameError, "did you mean 'radian'"),
+    ({"r_in": (0.01, 0.02)}, eac.ParameterError, "takes 1 value"),
+    ({"pose": np.zeros((4, 4))}, eac.ParameterError, "rigid transform"),
+])
+def test_bad_input_gives_typed_errors(lib, kwargs, error, text) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(error, match=text):
+        lib["CurveHandle"].instantiate(**kwargs)
+
+
+def test_bad_queries_give_typed_errors(lib) -> None:  # type: ignore[no-untyped-def]
+    door = lib["SunkenDoor"].instantiate()
+    with pytest.raises(eac.UnknownNameError, match="did you mean 'handle.pull'"):
+        door.grasp("handle.pul")
+    with pytest.raises(eac.ParameterError, match="outside the range"):
+        door.grasp("handle.pull", theta=3.0)
+    with pytest.raises(eac.ParameterError, match="outside its range"):
+        lib["SunkenDoor"].instantiate(joints={"hinge": 3.0})
+    with pytest.raises(eac.ParameterError, match="one of"):
+        lib["SunkenDoor"].instantiate(hinge_side="top")
+    with pytest.raises(eac.UnknownNameError):
+        lib["Nope"]
