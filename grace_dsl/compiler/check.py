@@ -61,12 +61,32 @@ def check(prog: Program) -> tuple[Checked, list[Diagnostic]]:
     """Type-check every concept of the program and evaluate it at its defaults."""
     types: dict[int, Type] = {}
     diags: list[Diagnostic] = []
-    concepts = {}
-    for name, entry in prog.concepts.items():
-        checker = _ConceptChecker(prog, entry.decl, entry.file, types)
+    concepts: dict[str, CheckedConcept] = {}
+    for name in _parts_first(prog):
+        entry = prog.concepts[name]
+        checker = _ConceptChecker(prog, entry.decl, entry.file, types, concepts)
         concepts[name] = checker.run()
         diags += checker.diags
     return Checked(prog, types, concepts), diags
+
+
+def _parts_first(prog: Program) -> list[str]:
+    """Concept names ordered so that every part's concept comes before its host."""
+    order: list[str] = []
+    seen: set[str] = set()
+
+    def visit(name: str) -> None:
+        if name in seen or name not in prog.concepts:
+            return
+        seen.add(name)
+        for m in flat_members(prog.concept(name)):
+            if isinstance(m, ast.Part):
+                visit(m.concept)
+        order.append(name)
+
+    for name in prog.concepts:
+        visit(name)
+    return order
 
 
 def names_in(e: ast.Expr) -> Iterator[ast.Name]:
@@ -99,8 +119,10 @@ def _fmt(value: float, dim: Dim) -> str:
 
 
 class _ConceptChecker:
-    def __init__(self, prog: Program, decl: ast.Concept, file: str, types: dict[int, Type]):
+    def __init__(self, prog: Program, decl: ast.Concept, file: str, types: dict[int, Type],
+                 done: dict[str, CheckedConcept]):
         self.prog, self.decl, self.file, self.types = prog, decl, file, types
+        self.done = done  # concepts checked before this one: every part's concept
         self.diags: list[Diagnostic] = []
         self.dropped = prog.dropped(file)
         self.members = {getattr(m, "name", None): m for m in flat_members(decl)}
@@ -203,6 +225,10 @@ class _ConceptChecker:
         self.visiting.append(name)
         saved, self.scope = self.scope, {}
         t = self.expr(let.value).type
+        if t.kind == "string":
+            self.err("E227", "a string can only be a choice's value", let.value.span,
+                     "declare a `choice{...}` parameter and compare it with its options")
+            t = ERR
         self.scope = saved
         self.visiting.pop()
         self.let_types[name] = t
@@ -638,8 +664,20 @@ class _ConceptChecker:
             if self.diags:
                 return
             ev = Evaluator(NUMPY, self.types, dict(out.defaults), self._lazy_let(out))
+            ev.env.update(self._part_defaults(ev))
             for m in flat_members(self.decl):
                 self._check_member_values(m, ev)
+
+    def _part_defaults(self, ev: Evaluator) -> dict[str, Any]:
+        """``part.param`` at the defaults: the part's argument, or its concept's default."""
+        values: dict[str, Any] = {}
+        for part in (m for m in flat_members(self.decl) if isinstance(m, ast.Part)):
+            sub = self.done.get(part.concept)
+            if sub is None or not sub.ok:
+                continue
+            values.update({f"{part.name}.{k}": v for k, v in sub.defaults.items()})
+            values.update({f"{part.name}.{a.name}": ev(a.value) for a in part.args if a.name})
+        return values
 
     def _lazy_let(self, out: CheckedConcept) -> Any:
         def value(name: str) -> Any:
