@@ -134,6 +134,7 @@ class _ConceptChecker:
         self.scope: dict[str, Type] = {}  # free grasp parameters while checking a grasp
         self.shape_names: set[str] = set()
         self.free_types: dict[str, dict[str, Type]] = {}
+        self.incomplete = False  # set when a name refers to a declaration dropped by the parser
 
     def err(self, code: str, msg: str, span: ast.Span, hint: str | None = None) -> None:
         self.diags.append(error(code, msg, span, hint))
@@ -143,7 +144,7 @@ class _ConceptChecker:
         for m in self.decl.members:
             self._member(m)
         result = CheckedConcept(self.decl, self.file, self.param_types, self.free_types)
-        result.ok = not self.diags
+        result.ok = not self.diags and not self.incomplete
         if result.ok:
             self._check_values(result)
             result.ok = not self.diags
@@ -483,6 +484,7 @@ class _ConceptChecker:
         if e.id == "pi":
             return T.num(ANGLE)
         if e.id in self.dropped:
+            self.incomplete = True  # a declaration lost to a syntax error: stay quiet
             return ERR
         if e.id in self.members:
             kind = type(self.members[e.id]).__name__.lower()
