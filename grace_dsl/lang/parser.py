@@ -479,15 +479,16 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         return ast.Name(c[0].value, _tok_span(self.path, c[0]))
 
     def call(self, c: list[Any]) -> ast.Call:
-        func, args = c
+        func, args, close = c
         args = tuple(args or ())
-        span = self._span(func, args[-1]) if args else _tok_span(self.path, func)
+        span = self._span(func, close)
         node = ast.Call(func.value, args, span, _tok_span(self.path, func))
         return self._expr(node, *(a.value for a in args))
 
     def vector(self, c: list[Any]) -> ast.Vector:
-        items = tuple(x for x in c if x is not None)
-        return self._expr(ast.Vector(items, self._span(items[0], items[-1])), *items)
+        open_, *inner, close = c
+        items = tuple(x for x in inner if x is not None)
+        return self._expr(ast.Vector(items, self._span(open_, close)), *items)
 
     def arg_list(self, c: list[Any]) -> list[ast.Arg]:
         return [a for a in c if a is not None]
