@@ -1,9 +1,9 @@
 """GRACE-EAC: executable analytic concepts for precise robot manipulation.
 
-    import grace_dsl as eac
-    lib = eac.load_library()
-    inst = lib["CurveHandle"].instantiate(radian=1.8)
-    inst.grasp("pull", theta=0.1)
+import grace_dsl as eac
+lib = eac.load_library()
+inst = lib["CurveHandle"].instantiate(radian=1.8)
+inst.grasp("pull", theta=0.1)
 """
 
 from grace_dsl.runtime.errors import (

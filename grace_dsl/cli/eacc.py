@@ -84,9 +84,14 @@ def _report(diags: list[Diagnostic], sources: dict[str, str], as_json: bool) -> 
 def cmd_check(args: argparse.Namespace) -> int:
     prog, checked, diags = front_end(args.paths)
     if args.json:
-        print_json({"ok": not has_errors(diags), "files": list(prog.files),
-                    "concepts": sorted(prog.concepts),
-                    "diagnostics": [d.to_json() for d in diags]})
+        print_json(
+            {
+                "ok": not has_errors(diags),
+                "files": list(prog.files),
+                "concepts": sorted(prog.concepts),
+                "diagnostics": [d.to_json() for d in diags],
+            }
+        )
     else:
         _report(diags, prog.sources(), False)
         if not has_errors(diags):
@@ -105,8 +110,9 @@ def cmd_build(args: argparse.Namespace) -> int:
             def progress(file: str, i: int, n: int) -> None:
                 bar.update(task, total=n, completed=i, description=f"compiling {Path(file).name}")
 
-            result = build(args.paths, args.cache_dir, use_native=not args.no_native,
-                           progress=progress)
+            result = build(
+                args.paths, args.cache_dir, use_native=not args.no_native, progress=progress
+            )
     else:
         result = build(args.paths, args.cache_dir, use_native=not args.no_native)
     diags = list(result.diagnostics)
@@ -114,19 +120,33 @@ def cmd_build(args: argparse.Namespace) -> int:
         diags += export_library(result, args.output)
     ok = not has_errors(diags)
     if args.json:
-        print_json({"ok": ok, "diagnostics": [d.to_json() for d in diags],
-                    "cache_dir": str(result.cache_dir) if result.cache_dir else None,
-                    "output": str(args.output) if args.output else None,
-                    "units": [{"file": u.file, "key": u.key, "concepts": sorted(u.concepts),
-                               "rebuilt": u.file in result.rebuilt} for u in result.units]})
+        print_json(
+            {
+                "ok": ok,
+                "diagnostics": [d.to_json() for d in diags],
+                "cache_dir": str(result.cache_dir) if result.cache_dir else None,
+                "output": str(args.output) if args.output else None,
+                "units": [
+                    {
+                        "file": u.file,
+                        "key": u.key,
+                        "concepts": sorted(u.concepts),
+                        "rebuilt": u.file in result.rebuilt,
+                    }
+                    for u in result.units
+                ],
+            }
+        )
         return 0 if ok else 1
     _report(diags, result.sources, False)
     if ok:
         n = sum(len(u.concepts) for u in result.units)
         where = args.output or result.cache_dir
-        print_text(f"built {n} concepts from {len(result.units)} files "
-                   f"({len(result.rebuilt)} compiled, {len(result.units) - len(result.rebuilt)} "
-                   f"cached) -> {where}")
+        print_text(
+            f"built {n} concepts from {len(result.units)} files "
+            f"({len(result.rebuilt)} compiled, {len(result.units) - len(result.rebuilt)} "
+            f"cached) -> {where}"
+        )
     return 0 if ok else 1
 
 
@@ -184,16 +204,39 @@ def cmd_list(args: argparse.Namespace) -> int:
         return 1
     concepts = [lib[n] for n in lib]
     if args.json:
-        print_json([{"name": c.name, "kind": c.entry["kind"], "file": c.entry["file"],
-                     "doc": c.doc, "params": [p.name for p in c.params],
-                     "grasps": list(c.grasps), "actions": list(c.actions),
-                     "joints": list(c.joints)} for c in concepts])
+        print_json(
+            [
+                {
+                    "name": c.name,
+                    "kind": c.entry["kind"],
+                    "file": c.entry["file"],
+                    "doc": c.doc,
+                    "params": [p.name for p in c.params],
+                    "grasps": list(c.grasps),
+                    "actions": list(c.actions),
+                    "joints": list(c.joints),
+                }
+                for c in concepts
+            ]
+        )
         return 0
-    rows = [[c.name, c.entry["kind"], c.entry["file"], str(len(c.params)),
-             ", ".join(c.grasps) or "-", ", ".join(c.actions) or "-",
-             (c.doc.splitlines() or [""])[0]] for c in concepts]
-    print_table(f"{len(rows)} concepts", ["concept", "kind", "file", "params", "grasps",
-                                          "actions", "synopsis"], rows)
+    rows = [
+        [
+            c.name,
+            c.entry["kind"],
+            c.entry["file"],
+            str(len(c.params)),
+            ", ".join(c.grasps) or "-",
+            ", ".join(c.actions) or "-",
+            (c.doc.splitlines() or [""])[0],
+        ]
+        for c in concepts
+    ]
+    print_table(
+        f"{len(rows)} concepts",
+        ["concept", "kind", "file", "params", "grasps", "actions", "synopsis"],
+        rows,
+    )
     return 0
 
 
@@ -214,15 +257,31 @@ def cmd_explain(args: argparse.Namespace) -> int:
     print_text(f"{c.name} ({c.entry['kind']}, {c.entry['file']})", style="bold")
     if c.doc:
         print_text(c.doc)
-    print_table("parameters", ["name", "type", "range", "default", "meaning"],
-                [[p.name, p.type, f"[{fmt_value(p.lo, p.dim)}, {fmt_value(p.hi, p.dim)}]"
-                  if p.lo is not None else "-",
-                  fmt_value(p.decode([p.default]) if p.kind == "choice" else p.default, p.dim),
-                  " ".join(x for x in (p.help or "", p.doc) if x)] for p in c.params])
+    print_table(
+        "parameters",
+        ["name", "type", "range", "default", "meaning"],
+        [
+            [
+                p.name,
+                p.type,
+                f"[{fmt_value(p.lo, p.dim)}, {fmt_value(p.hi, p.dim)}]"
+                if p.lo is not None
+                else "-",
+                fmt_value(p.decode([p.default]) if p.kind == "choice" else p.default, p.dim),
+                " ".join(x for x in (p.help or "", p.doc) if x),
+            ]
+            for p in c.params
+        ],
+    )
     if c.joints:
-        print_table("joints", ["name", "kind", "parent -> child", "doc"],
-                    [[j["name"], j["kind"], f"{j['parent']} -> {j['child']}", j["doc"]]
-                     for j in c.joints.values()])
+        print_table(
+            "joints",
+            ["name", "kind", "parent -> child", "doc"],
+            [
+                [j["name"], j["kind"], f"{j['parent']} -> {j['child']}", j["doc"]]
+                for j in c.joints.values()
+            ],
+        )
     for g in c.grasps.values():
         free = ", ".join(f["name"] for f in g["free"]) or "no free parameters"
         print_text(f"grasp {g['name']}({free}) on link {g['link']}", style="bold")
@@ -230,15 +289,29 @@ def cmd_explain(args: argparse.Namespace) -> int:
             print_text("  " + g["doc"].replace("\n", "\n  "))
         if "." in g["name"]:
             part = g["name"].rsplit(".", 1)[0]
-            print_text(f"  from part {part} ({c.parts.get(part, '?')}): its formula there, placed "
-                       "by the part's pose and the joints above it")
+            print_text(
+                f"  from part {part} ({c.parts.get(part, '?')}): its formula there, placed "
+                "by the part's pose and the joints above it"
+            )
         else:
             print_text(f"  G = {g['source']}")
             print_text(f"    = {g['formula']['text']}")
     if c.actions:
-        print_table("actions", ["name", "verb", "along", "sense", "using", "synopsis"],
-                    [[a["name"], a["verb"], a["joint"] or "fixed direction", a["sense"],
-                      ", ".join(a["using"]) or "-", a["doc"]] for a in c.actions.values()])
+        print_table(
+            "actions",
+            ["name", "verb", "along", "sense", "using", "synopsis"],
+            [
+                [
+                    a["name"],
+                    a["verb"],
+                    a["joint"] or "fixed direction",
+                    a["sense"],
+                    ", ".join(a["using"]) or "-",
+                    a["doc"],
+                ]
+                for a in c.actions.values()
+            ],
+        )
     return 0
 
 

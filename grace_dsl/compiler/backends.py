@@ -1,17 +1,17 @@
 """Numeric backends that lowering writes to: CasADi SX, SymPy and NumPy.
 
-(The SymPy backend lives in ``sympy_backend`` so that importing the runtime does not import
-SymPy.)  Lowering is written once against this small set of scalar operations; each backend gives them
+Lowering is written once against this small set of scalar operations; each backend gives them
 its own meaning: symbolic graphs for fast code (CasADi), exact formulas for people and prompts
 (SymPy), and plain numbers for checks at the defaults (NumPy, elementwise over arrays too).
 Arithmetic (+ - * / and unary -) uses Python operators, which all three types support.
+The SymPy backend lives in ``sympy_backend`` so that importing the runtime does not import SymPy.
 """
 
 from __future__ import annotations
 
 import math
-from fractions import Fraction
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import casadi as ca
@@ -84,8 +84,14 @@ class NumpyBackend:
         return np.where(c, a, b)
 
     def compare(self, op: str, a: Any, b: Any) -> Any:
-        return {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
-                "==": np.equal, "!=": np.not_equal}[op](a, b)
+        return {
+            "<": np.less,
+            "<=": np.less_equal,
+            ">": np.greater,
+            ">=": np.greater_equal,
+            "==": np.equal,
+            "!=": np.not_equal,
+        }[op](a, b)
 
     def and_(self, a: Any, b: Any) -> Any:
         return np.logical_and(a, b)
@@ -158,8 +164,7 @@ class CasadiBackend:
 
     def compare(self, op: str, a: Any, b: Any) -> Any:
         a, b = ca.SX(a), ca.SX(b)
-        return {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b,
-                "==": a == b, "!=": a != b}[op]
+        return {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b, "!=": a != b}[op]
 
     def and_(self, a: Any, b: Any) -> Any:
         return ca.logic_and(a, b)

@@ -10,6 +10,7 @@ loser discards its copy and uses the winner's.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -59,9 +60,9 @@ def default_cache_dir() -> Path:
     return Path(env) if env else Path(platformdirs.user_cache_dir("grace-dsl")) / "build"
 
 
-def front_end(paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()) -> tuple[
-    Program, Checked, list[Diagnostic]
-]:
+def front_end(
+    paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()
+) -> tuple[Program, Checked, list[Diagnostic]]:
     """Parse, resolve and check; the diagnostics of all three passes."""
     prog, diags = resolve(paths, search_path)
     checked, more = check(prog)
@@ -99,14 +100,20 @@ def _usable_cache(cache: Path, diags: list[Diagnostic]) -> Path:
     try:
         (cache / "units").mkdir(parents=True, exist_ok=True)
         (cache / "tmp").mkdir(parents=True, exist_ok=True)
-        probe = tempfile.NamedTemporaryFile(dir=cache / "tmp", delete=True)
-        probe.close()
+        with tempfile.NamedTemporaryFile(dir=cache / "tmp"):
+            pass  # proves the cache is writable
         return cache
     except OSError as exc:
         fallback = Path(tempfile.mkdtemp(prefix="grace-dsl-cache-"))
-        diags.append(Diagnostic("E301", f"cache directory {cache} is not writable "
-                                f"({exc.strerror}); building in {fallback}", ast.NO_SPAN,
-                                "set GRACE_CACHE_DIR to a writable directory", "warning"))
+        diags.append(
+            Diagnostic(
+                "E301",
+                f"cache directory {cache} is not writable ({exc.strerror}); building in {fallback}",
+                ast.NO_SPAN,
+                "set GRACE_CACHE_DIR to a writable directory",
+                "warning",
+            )
+        )
         (fallback / "units").mkdir()
         (fallback / "tmp").mkdir()
         return fallback
@@ -146,8 +153,9 @@ def _concepts_of(prog: Program, file: str) -> list[str]:
     return [n for n, e in prog.concepts.items() if e.file == file]
 
 
-def _write_unit(unit_dir: Path, prog: Program, checked: Checked, file: str, key: str,
-                use_native: bool) -> None:
+def _write_unit(
+    unit_dir: Path, prog: Program, checked: Checked, file: str, key: str, use_native: bool
+) -> None:
     from grace_dsl.compiler.functions import casadi_functions, sympy_model
     from grace_dsl.compiler.manifest import concept_entry
 
@@ -160,14 +168,25 @@ def _write_unit(unit_dir: Path, prog: Program, checked: Checked, file: str, key:
             compiled = casadi_functions(checked, name)
             names = {k: f"c{ci}_{f.name()}" for k, f in compiled.functions.items()}
             exact = sympy_model(checked, name)
-            entries[name] = concept_entry(prog.concept(name), Path(file).name,
-                                          prog.files[file].text, compiled.lowered, exact, names)
+            entries[name] = concept_entry(
+                prog.concept(name),
+                Path(file).name,
+                prog.files[file].text,
+                compiled.lowered,
+                exact,
+                names,
+            )
             for k, f in compiled.functions.items():
                 serialized[names[k]] = f.serialize()
                 all_functions[names[k]] = f
         lib = _native_library(all_functions, tmp) if use_native else None
-        unit = {"format": UNIT_FORMAT, "file": file, "key": key, "concepts": entries,
-                "native": lib.name if lib is not None else None}
+        unit = {
+            "format": UNIT_FORMAT,
+            "file": file,
+            "key": key,
+            "concepts": entries,
+            "native": lib.name if lib is not None else None,
+        }
         (tmp / "functions.json").write_text(json.dumps(serialized))
         (tmp / "unit.json").write_text(json.dumps(unit, indent=1))
         try:
@@ -204,10 +223,8 @@ def export_library(result: BuildResult, out_dir: Path) -> list[Diagnostic]:
                 tmp = Path(tempfile.mkdtemp(prefix=unit.key, dir=out_dir))
                 shutil.copytree(unit.dir, tmp / "unit")
                 target.parent.mkdir(exist_ok=True)
-                try:
+                with contextlib.suppress(OSError):  # a concurrent export placed the same unit
                     os.rename(tmp / "unit", target)
-                except OSError:
-                    pass  # a concurrent export placed the same unit
                 shutil.rmtree(tmp, ignore_errors=True)
         manifest = library_manifest(result)
         fd, tmp_name = tempfile.mkstemp(prefix="manifest-", suffix=".json", dir=out_dir)
@@ -215,8 +232,13 @@ def export_library(result: BuildResult, out_dir: Path) -> list[Diagnostic]:
             json.dump(manifest, fh, indent=1)
         os.replace(tmp_name, out_dir / "manifest.json")
     except OSError as exc:
-        return [error("E301", f"cannot write the artifact to {out_dir}: {exc.strerror}",
-                      ast.Span(str(out_dir), 0, 0, 0, 0))]
+        return [
+            error(
+                "E301",
+                f"cannot write the artifact to {out_dir}: {exc.strerror}",
+                ast.Span(str(out_dir), 0, 0, 0, 0),
+            )
+        ]
     return []
 
 
@@ -224,10 +246,15 @@ def library_manifest(result: BuildResult) -> dict[str, Any]:
     return {
         "format": UNIT_FORMAT,
         "compiler": compiler_fingerprint()[:16],
-        "units": {u.key: {"file": u.file, "source_sha256": _sha(result.sources.get(u.file, ""))}
-                  for u in result.units},
-        "concepts": {name: {**entry, "unit": u.key} for u in result.units
-                     for name, entry in u.concepts.items()},
+        "units": {
+            u.key: {"file": u.file, "source_sha256": _sha(result.sources.get(u.file, ""))}
+            for u in result.units
+        },
+        "concepts": {
+            name: {**entry, "unit": u.key}
+            for u in result.units
+            for name, entry in u.concepts.items()
+        },
     }
 
 

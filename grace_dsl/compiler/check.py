@@ -24,9 +24,16 @@ from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 ERR = Type("error")
 JOINT_KINDS = ("revolute", "prismatic", "continuous", "fixed")
 VERBS = {  # verb -> default sense along a joint
-    "pull": "opening", "push": "closing", "lift": "opening", "lower": "closing",
-    "press": "closing", "turn": "opening", "rotate": "opening", "slide": "opening",
-    "open": "opening", "close": "closing",
+    "pull": "opening",
+    "push": "closing",
+    "lift": "opening",
+    "lower": "closing",
+    "press": "closing",
+    "turn": "opening",
+    "rotate": "opening",
+    "slide": "opening",
+    "open": "opening",
+    "close": "closing",
 }
 SET_OPS = ("union", "difference")
 
@@ -119,8 +126,14 @@ def _fmt(value: float, dim: Dim) -> str:
 
 
 class _ConceptChecker:
-    def __init__(self, prog: Program, decl: ast.Concept, file: str, types: dict[int, Type],
-                 done: dict[str, CheckedConcept]):
+    def __init__(
+        self,
+        prog: Program,
+        decl: ast.Concept,
+        file: str,
+        types: dict[int, Type],
+        done: dict[str, CheckedConcept],
+    ):
         self.prog, self.decl, self.file, self.types = prog, decl, file, types
         self.done = done  # concepts checked before this one: every part's concept
         self.diags: list[Diagnostic] = []
@@ -199,18 +212,30 @@ class _ConceptChecker:
             self._constant(p.default, "a parameter's default")
             self.coerce(self.expr(p.default), t, p.default.span)
         elif p.bounds is None and t.kind not in ("bool", "choice"):
-            self.err("E222", f"parameter `{p.name}` has neither a default nor a range",
-                     p.name_span, "add `= value` or `in [lo, hi]` (the default is then the middle)")
+            self.err(
+                "E222",
+                f"parameter `{p.name}` has neither a default nor a range",
+                p.name_span,
+                "add `= value` or `in [lo, hi]` (the default is then the middle)",
+            )
         elif t.kind == "choice" and p.default is None:
-            self.err("E222", f"choice parameter `{p.name}` needs a default", p.name_span,
-                     f'add `= "{t.choices[0]}"`')
+            self.err(
+                "E222",
+                f"choice parameter `{p.name}` needs a default",
+                p.name_span,
+                f'add `= "{t.choices[0]}"`',
+            )
 
     def _constant(self, e: ast.Expr, what: str) -> None:
         for n in names_in(e):
             if n.id in self.param_types or n.id in self.lets:
-                self.err("E207", f"{what} must be a constant, but it uses `{n.id}`", n.span,
-                         "ranges and defaults of parameters are fixed numbers; relate "
-                         "parameters with `require`")
+                self.err(
+                    "E207",
+                    f"{what} must be a constant, but it uses `{n.id}`",
+                    n.span,
+                    "ranges and defaults of parameters are fixed numbers; relate "
+                    "parameters with `require`",
+                )
                 return
 
     # ---- declarations ---------------------------------------------------------------------------
@@ -219,7 +244,7 @@ class _ConceptChecker:
             return self.let_types[name]
         let = self.lets[name]
         if name in self.visiting:
-            cycle = " -> ".join([*self.visiting[self.visiting.index(name):], name])
+            cycle = " -> ".join([*self.visiting[self.visiting.index(name) :], name])
             self.err("E119", f"`{name}` is defined in terms of itself: {cycle}", let.name_span)
             self.let_types[name] = ERR
             return ERR
@@ -227,8 +252,12 @@ class _ConceptChecker:
         saved, self.scope = self.scope, {}
         t = self.expr(let.value).type
         if t.kind == "string":
-            self.err("E227", "a string can only be a choice's value", let.value.span,
-                     "declare a `choice{...}` parameter and compare it with its options")
+            self.err(
+                "E227",
+                "a string can only be a choice's value",
+                let.value.span,
+                "declare a `choice{...}` parameter and compare it with its options",
+            )
             t = ERR
         self.scope = saved
         self.visiting.pop()
@@ -242,8 +271,12 @@ class _ConceptChecker:
                 self.err("E205", f"`{v.func}` takes two or more shapes", v.span)
             for a in v.args:
                 if not (isinstance(a.value, ast.Name) and a.value.id in self.shape_names):
-                    self.err("E223", f"`{v.func}` combines shapes declared above", a.value.span,
-                             did_you_mean(getattr(a.value, "id", ""), self.shape_names))
+                    self.err(
+                        "E223",
+                        f"`{v.func}` combines shapes declared above",
+                        a.value.span,
+                        did_you_mean(getattr(a.value, "id", ""), self.shape_names),
+                    )
                 self.types[id(a.value)] = T.SHAPE
         elif isinstance(v, ast.Call) and self._primitive(v.func) is not None:
             prim = self._primitive(v.func)
@@ -251,14 +284,21 @@ class _ConceptChecker:
             self._named_args(v.args, prim, v.func_span, "primitive")
         else:
             func = v.func if isinstance(v, ast.Call) else None
-            prims = [n for n, f in self.prog.visible.get(self.file, {}).items()
-                     if self.prog.concepts[n].decl.kind == "primitive"]
+            prims = [
+                n
+                for n, f in self.prog.visible.get(self.file, {}).items()
+                if self.prog.concepts[n].decl.kind == "primitive"
+            ]
             hint = did_you_mean(func, prims) if func else None
             if func and func in self.prog.concepts:
                 hint = f"`{func}` is a concept: place it with `part {s.name} = {func}(...)`"
-            self.err("E223", "a shape is a primitive such as `Cuboid(size: ...)`, or "
-                     "`union(a, b)` / `difference(a, b)` of shapes", v.span,
-                     hint or "import primitives with `use primitives.{...}`")
+            self.err(
+                "E223",
+                "a shape is a primitive such as `Cuboid(size: ...)`, or "
+                "`union(a, b)` / `difference(a, b)` of shapes",
+                v.span,
+                hint or "import primitives with `use primitives.{...}`",
+            )
         if s.at is not None:
             self._expect_pose(s.at)
         self.shape_names.add(s.name)
@@ -277,23 +317,33 @@ class _ConceptChecker:
         if p.at is not None:
             self._expect_pose(p.at)
 
-    def _named_args(self, args: tuple[ast.Arg, ...], target: ast.Concept, span: ast.Span,
-                    what: str) -> None:
+    def _named_args(
+        self, args: tuple[ast.Arg, ...], target: ast.Concept, span: ast.Span, what: str
+    ) -> None:
         params = {m.name: m for m in target.members if isinstance(m, ast.Param)}
         seen: set[str] = set()
         for a in args:
             te = self.expr(a.value)
             if a.name is None:
-                self.err("E117", f"arguments of a {what} are named", a.span,
-                         f"write `name: value`; `{target.name}` has "
-                         + ", ".join(params) if params else None)
+                self.err(
+                    "E117",
+                    f"arguments of a {what} are named",
+                    a.span,
+                    f"write `name: value`; `{target.name}` has " + ", ".join(params)
+                    if params
+                    else None,
+                )
                 continue
             if a.name in seen:
                 self.err("E118", f"argument `{a.name}` is given twice", a.span)
             seen.add(a.name)
             if a.name not in params:
-                self.err("E116", f"`{target.name}` has no parameter `{a.name}`", a.span,
-                         did_you_mean(a.name, params))
+                self.err(
+                    "E116",
+                    f"`{target.name}` has no parameter `{a.name}`",
+                    a.span,
+                    did_you_mean(a.name, params),
+                )
                 continue
             expected = declared_type(params[a.name].type)
             if expected is not None:
@@ -301,8 +351,12 @@ class _ConceptChecker:
 
     def _joint(self, j: ast.Joint) -> None:
         if j.kind not in JOINT_KINDS:
-            self.err("E218", f"unknown joint kind `{j.kind}`", j.kind_span,
-                     did_you_mean(j.kind, JOINT_KINDS) or "kinds: " + ", ".join(JOINT_KINDS))
+            self.err(
+                "E218",
+                f"unknown joint kind `{j.kind}`",
+                j.kind_span,
+                did_you_mean(j.kind, JOINT_KINDS) or "kinds: " + ", ".join(JOINT_KINDS),
+            )
             return
         moving = j.kind != "fixed"
         if moving and j.axis is None:
@@ -310,8 +364,12 @@ class _ConceptChecker:
         if not moving and (j.axis is not None or j.limits is not None):
             self.err("E219", "a fixed joint takes no axis or range", j.span)
         if j.kind == "continuous" and j.limits is not None:
-            self.err("E219", "a continuous joint turns freely and takes no range", j.limits.span,
-                     "use a revolute joint for a limited rotation")
+            self.err(
+                "E219",
+                "a continuous joint turns freely and takes no range",
+                j.limits.span,
+                "use a revolute joint for a limited rotation",
+            )
         if j.kind in ("revolute", "prismatic") and j.limits is None:
             self.err("E219", f"a {j.kind} joint needs a `range [closed, open]`", j.span)
         if j.axis is not None:
@@ -325,8 +383,9 @@ class _ConceptChecker:
             for bound in (j.limits.lo, j.limits.hi):
                 te = self.expr(bound)
                 if te.type.kind == "num" and te.type.dim not in (unit, SCALAR):
-                    self.err("E229", f"a {j.kind} joint's range is in {unit}s, not {te.type}",
-                             bound.span)
+                    self.err(
+                        "E229", f"a {j.kind} joint's range is in {unit}s, not {te.type}", bound.span
+                    )
                 else:
                     self.coerce(te, T.num(unit), bound.span)
 
@@ -345,25 +404,34 @@ class _ConceptChecker:
         self._expect_pose(g.pose)
         if g.width is not None:
             te = self.expr(g.width)
-            if te.type.kind != "num" or te.type.dim != LENGTH and te.const != 0:
-                if te.type is not ERR:
-                    self.err("E231", f"the gripper width is a length, not {te.type}",
-                             g.width.span, "e.g. `width r_out - r_in` or `width 30mm`")
+            not_length = te.type.kind != "num" or (te.type.dim != LENGTH and te.const != 0)
+            if not_length and te.type is not ERR:
+                self.err(
+                    "E231",
+                    f"the gripper width is a length, not {te.type}",
+                    g.width.span,
+                    "e.g. `width r_out - r_in` or `width 30mm`",
+                )
         self.free_types[g.name] = free
         self.scope = {}
 
     def _action(self, a: ast.Action) -> None:
         if a.verb not in VERBS:
-            self.err("E220", f"unknown action verb `{a.verb}`", a.verb_span,
-                     did_you_mean(a.verb, VERBS) or "verbs: " + ", ".join(VERBS))
+            self.err(
+                "E220",
+                f"unknown action verb `{a.verb}`",
+                a.verb_span,
+                did_you_mean(a.verb, VERBS) or "verbs: " + ", ".join(VERBS),
+            )
         joint = self.members.get(a.joint) if a.joint else None
         if isinstance(joint, ast.Joint) and joint.kind == "fixed":
             self.err("E219", f"`{a.joint}` is fixed: nothing moves along it", a.joint_span)
         if a.direction is not None:
             te = self.expr(a.direction)
             if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
-                self.err("E230", f"a force direction is a 3-vector, not {te.type}",
-                         a.direction.span)
+                self.err(
+                    "E230", f"a force direction is a 3-vector, not {te.type}", a.direction.span
+                )
 
     # ---- coercion helpers -----------------------------------------------------------------------
     def coerce(self, te: TE, want: Type, span: ast.Span) -> None:
@@ -374,8 +442,12 @@ class _ConceptChecker:
             if want.kind == "choice":
                 assert isinstance(te.const, str)
                 if te.const not in want.choices:
-                    self.err("E216", f'"{te.const}" is not one of {want}', span,
-                             did_you_mean(te.const, want.choices))
+                    self.err(
+                        "E216",
+                        f'"{te.const}" is not one of {want}',
+                        span,
+                        did_you_mean(te.const, want.choices),
+                    )
                 return
             self.err("E227", "a string can only be a choice's value", span)
             return
@@ -387,8 +459,12 @@ class _ConceptChecker:
             if te.const is not None and got.dim == SCALAR:
                 unit = "mm" if want.dim == LENGTH else "deg" if want.dim == ANGLE else ""
                 example = _example(te.const, unit)
-                self.err("E204", f"a bare number where {_a(want)} is needed", span,
-                         f"write the unit: `{example}`" if unit else None)
+                self.err(
+                    "E204",
+                    f"a bare number where {_a(want)} is needed",
+                    span,
+                    f"write the unit: `{example}`" if unit else None,
+                )
                 return
             self.err("E203", f"expected {_a(want)}, found {_a(got)}", span)
             return
@@ -409,14 +485,20 @@ class _ConceptChecker:
                 return tb
             if _is_zero(b.const):
                 return ta
-            bare, other = (a, tb) if a.const is not None else (b, ta) if b.const is not None else (
-                None, None)
-            if bare is not None and bare.type.dim == SCALAR and other is not None:
-                if other.dim in (LENGTH, ANGLE):
-                    unit = "mm" if other.dim == LENGTH else "deg"
-                    self.err("E204", f"a bare number in {what} with {_a(T.num(other.dim))}", span,
-                             f"write the unit, e.g. `{_example(bare.const, unit)}`")
-                    return ERR
+            bare, other = (
+                (a, tb) if a.const is not None else (b, ta) if b.const is not None else (None, None)
+            )
+            bare_vs_unit = bare is not None and other is not None and bare.type.dim == SCALAR
+            if bare_vs_unit and other is not None and other.dim in (LENGTH, ANGLE):
+                assert bare is not None
+                unit = "mm" if other.dim == LENGTH else "deg"
+                self.err(
+                    "E204",
+                    f"a bare number in {what} with {_a(T.num(other.dim))}",
+                    span,
+                    f"write the unit, e.g. `{_example(bare.const, unit)}`",
+                )
+                return ERR
             if ta.integer != tb.integer and ta.dim == tb.dim:
                 return T.num(ta.dim) if ta.kind == "num" else T.vec(ta.size, ta.dim)
             self.err("E203", f"{what} mixes {_a(ta)} and {_a(tb)}", span)
@@ -429,14 +511,22 @@ class _ConceptChecker:
 
     def _expect_bool(self, te: TE, span: ast.Span) -> None:
         if te.type not in (T.BOOL, ERR):
-            self.err("E214", f"a condition must be true or false, not {_a(te.type)}", span,
-                     "compare it, e.g. `x > 0`")
+            self.err(
+                "E214",
+                f"a condition must be true or false, not {_a(te.type)}",
+                span,
+                "compare it, e.g. `x > 0`",
+            )
 
     def _expect_pose(self, e: ast.Expr) -> None:
         te = self.expr(e)
         if te.type.kind not in ("pose", "rot", "error"):
-            self.err("E224", f"expected a pose, found {_a(te.type)}", e.span,
-                     "build poses with trans(x, y, z), rotx/roty/rotz(a), rpy(r, p, y) and `*`")
+            self.err(
+                "E224",
+                f"expected a pose, found {_a(te.type)}",
+                e.span,
+                "build poses with trans(x, y, z), rotx/roty/rotz(a), rpy(r, p, y) and `*`",
+            )
 
     # ---- expressions ----------------------------------------------------------------------------
     def expr(self, e: ast.Expr) -> TE:
@@ -464,8 +554,11 @@ class _ConceptChecker:
             a, b = self.expr(e.then), self.expr(e.orelse)
             t = self._unify(a, b, e.span, "the branches of `if`")
             if t is ERR and a.type.kind != b.type.kind and ERR not in (a.type, b.type):
-                self.diags[-1] = error("E215", f"`if` gives {_a(a.type)} in one branch and "
-                                       f"{_a(b.type)} in the other", e.span)
+                self.diags[-1] = error(
+                    "E215",
+                    f"`if` gives {_a(a.type)} in one branch and {_a(b.type)} in the other",
+                    e.span,
+                )
             return TE(t)
         if isinstance(e, ast.Unary):
             return self._unary(e)
@@ -502,8 +595,7 @@ class _ConceptChecker:
         if any(i.type.kind != "num" for i in items):
             bad = next(i for i in items if i.type.kind != "num")
             if bad.type is not ERR:
-                self.err("E202", f"a vector's components are numbers, not {_a(bad.type)}",
-                         e.span)
+                self.err("E202", f"a vector's components are numbers, not {_a(bad.type)}", e.span)
             return TE(ERR)
         t = items[0]
         for other in items[1:]:
@@ -526,8 +618,12 @@ class _ConceptChecker:
         fields = "xyz"[: t.size] if t.kind == "vec" else ""
         if e.field not in fields or len(e.field) != 1:
             where = f"a {t}" if t.kind == "vec" else _a(t)
-            self.err("E212", f"`.{e.field}` is not a component of {where}", e.span,
-                     f"components: {', '.join('.' + f for f in fields)}" if fields else None)
+            self.err(
+                "E212",
+                f"`.{e.field}` is not a component of {where}",
+                e.span,
+                f"components: {', '.join('.' + f for f in fields)}" if fields else None,
+            )
             return TE(ERR)
         const = te.const["xyz".index(e.field)] if isinstance(te.const, tuple) else None
         return TE(T.num(t.dim), const)
@@ -540,8 +636,12 @@ class _ConceptChecker:
             return ERR
         params = {m.name: m for m in entry.decl.members if isinstance(m, ast.Param)}
         if e.field not in params:
-            self.err("E212", f"part `{part.name}` ({part.concept}) has no parameter `{e.field}`",
-                     e.span, did_you_mean(e.field, params))
+            self.err(
+                "E212",
+                f"part `{part.name}` ({part.concept}) has no parameter `{e.field}`",
+                e.span,
+                did_you_mean(e.field, params),
+            )
             return ERR
         return declared_type(params[e.field].type) or ERR
 
@@ -572,8 +672,9 @@ class _ConceptChecker:
         if e.op in ("+", "-"):
             t = self._unify(a, b, e.span, f"`{e.op}`")
             if ta.kind not in ("num", "vec") and t is not ERR:
-                self.err("E202", f"cannot add or subtract {_a(ta)}", e.span,
-                         "compose poses with `*`")
+                self.err(
+                    "E202", f"cannot add or subtract {_a(ta)}", e.span, "compose poses with `*`"
+                )
                 return TE(ERR)
             const = _arith(e.op, a.const, b.const)
             return TE(t, const)
@@ -583,8 +684,9 @@ class _ConceptChecker:
             if tb.kind != "num" or ta.kind not in ("num", "vec"):
                 self.err("E202", f"cannot divide {_a(ta)} by {_a(tb)}", e.span)
                 return TE(ERR)
-            return TE(Type(ta.kind, T.div_dim(ta.dim, tb.dim), ta.size), _arith("/", a.const,
-                                                                                 b.const))
+            return TE(
+                Type(ta.kind, T.div_dim(ta.dim, tb.dim), ta.size), _arith("/", a.const, b.const)
+            )
         return self._product(e, a, b)
 
     def _comparison(self, e: ast.Binary, a: TE, b: TE) -> TE:
@@ -592,17 +694,23 @@ class _ConceptChecker:
         if "string" in (ta.kind, tb.kind) or "choice" in (ta.kind, tb.kind):
             choice, text = (ta, b) if tb.kind == "string" else (tb, a)
             if choice.kind != "choice" or text.type.kind != "string" or e.op not in ("==", "!="):
-                self.err("E227", "compare a choice parameter with one of its options, e.g. "
-                         '`side == "left"`', e.span)
+                self.err(
+                    "E227",
+                    'compare a choice parameter with one of its options, e.g. `side == "left"`',
+                    e.span,
+                )
                 return TE(ERR)
             self.coerce(text, choice, e.span)
             return TE(T.BOOL)
         if ta.kind == "bool" and tb.kind == "bool" and e.op in ("==", "!="):
             return TE(T.BOOL)
         if ta.kind != "num" or tb.kind != "num":
-            self.err("E202", f"cannot compare {_a(ta)} with {_a(tb)}", e.span,
-                     "compare components, e.g. `v.x < 1mm`" if "vec" in (ta.kind, tb.kind)
-                     else None)
+            self.err(
+                "E202",
+                f"cannot compare {_a(ta)} with {_a(tb)}",
+                e.span,
+                "compare components, e.g. `v.x < 1mm`" if "vec" in (ta.kind, tb.kind) else None,
+            )
             return TE(ERR)
         self._unify(a, b, e.span, f"`{e.op}`")
         return TE(T.BOOL)
@@ -614,8 +722,9 @@ class _ConceptChecker:
         if a.type.dim == SCALAR:
             return TE(T.num(), _arith("^", a.const, b.const))
         if b.const is None or float(b.const) != int(b.const):
-            self.err("E202", f"a {a.type} can only be raised to a whole constant power",
-                     e.right.span)
+            self.err(
+                "E202", f"a {a.type} can only be raised to a whole constant power", e.right.span
+            )
             return TE(ERR)
         n = int(b.const)
         return TE(T.num(Dim(a.type.dim.length * n, a.type.dim.angle and n == 1)))
@@ -623,18 +732,23 @@ class _ConceptChecker:
     def _product(self, e: ast.Binary, a: TE, b: TE) -> TE:
         ta, tb = a.type, b.type
         if ta.kind == "num" and tb.kind in ("num", "vec"):
-            return TE(Type(tb.kind, T.mul_dim(ta.dim, tb.dim), tb.size), _arith("*", a.const,
-                                                                                b.const))
+            return TE(
+                Type(tb.kind, T.mul_dim(ta.dim, tb.dim), tb.size), _arith("*", a.const, b.const)
+            )
         if tb.kind == "num" and ta.kind == "vec":
-            return TE(Type("vec", T.mul_dim(ta.dim, tb.dim), ta.size), _arith("*", a.const,
-                                                                               b.const))
+            return TE(
+                Type("vec", T.mul_dim(ta.dim, tb.dim), ta.size), _arith("*", a.const, b.const)
+            )
         if ta.kind in ("rot", "pose") and tb.kind == "vec":
             if tb.size != 3:
                 self.err("E213", f"a {ta} acts on 3-vectors, not on a {tb}", e.span)
                 return TE(ERR)
             if ta.kind == "pose" and tb.dim != LENGTH and not _is_zero(b.const):
-                self.err("E203", "a pose moves points (lengths); rotate directions with a "
-                         "rotation", e.span)
+                self.err(
+                    "E203",
+                    "a pose moves points (lengths); rotate directions with a rotation",
+                    e.span,
+                )
                 return TE(ERR)
             return TE(tb)
         if ta.kind in ("rot", "pose") and tb.kind in ("rot", "pose"):
@@ -685,6 +799,7 @@ class _ConceptChecker:
         def value(name: str) -> Any:
             ev = Evaluator(NUMPY, self.types, out.defaults, value)
             return ev(self.lets[name].value)
+
         return value
 
     def _check_param_values(self, out: CheckedConcept) -> None:
@@ -695,8 +810,11 @@ class _ConceptChecker:
             if p.bounds is not None:
                 lo, hi = ev(p.bounds.lo), ev(p.bounds.hi)
                 if np.any(np.asarray(lo) > np.asarray(hi)):
-                    self.err("E208", f"the range of `{name}` is empty: its lower bound is above "
-                             "its upper bound", p.bounds.span)
+                    self.err(
+                        "E208",
+                        f"the range of `{name}` is empty: its lower bound is above its upper bound",
+                        p.bounds.span,
+                    )
                     continue
                 out.bounds[name] = (lo, hi)
             if p.default is not None:
@@ -713,12 +831,17 @@ class _ConceptChecker:
             if t.integer and float(value) != int(value):
                 span = p.default.span if p.default is not None else p.name_span
                 self.err("E226", f"`{name}` is an int, but its default is {float(value):g}", span)
-            if lo is not None and (np.any(np.asarray(value) < np.asarray(lo))
-                                   or np.any(np.asarray(value) > np.asarray(hi))):
+            if lo is not None and (
+                np.any(np.asarray(value) < np.asarray(lo))
+                or np.any(np.asarray(value) > np.asarray(hi))
+            ):
                 assert p.default is not None and p.bounds is not None
-                self.err("E209", f"the default of `{name}` lies outside its range",
-                         p.default.span, f"the range is [{_fmt_any(lo, t.dim)}, "
-                         f"{_fmt_any(hi, t.dim)}]")
+                self.err(
+                    "E209",
+                    f"the default of `{name}` lies outside its range",
+                    p.default.span,
+                    f"the range is [{_fmt_any(lo, t.dim)}, {_fmt_any(hi, t.dim)}]",
+                )
             out.defaults[name] = value
 
     def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
@@ -726,9 +849,13 @@ class _ConceptChecker:
             if not bool(ev(m.cond)):
                 used = sorted({n.id for n in names_in(m.cond)} & set(ev.env) - {"pi"})
                 shown = ", ".join(f"{n} = {_fmt_any(ev.env[n], self._dim(n))}" for n in used)
-                self.err("E210", "this requirement is false at the defaults"
-                         + (f" ({m.message})" if m.message else ""), m.cond.span,
-                         f"at the defaults {shown}" if shown else None)
+                self.err(
+                    "E210",
+                    "this requirement is false at the defaults"
+                    + (f" ({m.message})" if m.message else ""),
+                    m.cond.span,
+                    f"at the defaults {shown}" if shown else None,
+                )
         elif isinstance(m, ast.Let):
             self._finite(ev(m.value), m.value.span, f"`{m.name}`")
         elif isinstance(m, ast.Joint) and m.axis is not None:
@@ -744,8 +871,12 @@ class _ConceptChecker:
             lo, hi = ev(fp.lo), ev(fp.hi)
             if not lo <= hi:
                 dim = self.free_types[g.name][fp.name].dim
-                self.err("E211", f"the range of `{fp.name}` is empty at the defaults "
-                         f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])", fp.span)
+                self.err(
+                    "E211",
+                    f"the range of `{fp.name}` is empty at the defaults "
+                    f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])",
+                    fp.span,
+                )
                 return
             free[fp.name] = ev(fp.default) if fp.default is not None else (lo + hi) / 2
         sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy)
@@ -758,8 +889,12 @@ class _ConceptChecker:
             return
         arr = np.asarray(value, dtype=float)
         if not np.all(np.isfinite(arr)):
-            self.err("E225", f"{what} is not a finite number at the defaults", span,
-                     "look for a division by zero or the square root of a negative number")
+            self.err(
+                "E225",
+                f"{what} is not a finite number at the defaults",
+                span,
+                "look for a division by zero or the square root of a negative number",
+            )
 
     def _dim(self, name: str) -> Dim:
         t = self.param_types.get(name) or self.let_types.get(name) or T.num()
@@ -776,18 +911,29 @@ def declared_type(ref: ast.TypeRef) -> Type | None:
 def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
     """The result type of a built-in call, reporting arity and argument errors."""
     f, n = e.func, len(args)
-    arity = {"atan2": (2,), "min": (2,), "max": (2,), "clamp": (3,), "dot": (2,), "cross": (2,),
-             "rpy": (3,), "axis_angle": (2,), "trans": (1, 3)}.get(f, (1,))
+    arity = {
+        "atan2": (2,),
+        "min": (2,),
+        "max": (2,),
+        "clamp": (3,),
+        "dot": (2,),
+        "cross": (2,),
+        "rpy": (3,),
+        "axis_angle": (2,),
+        "trans": (1, 3),
+    }.get(f, (1,))
     if n not in arity:
         want = " or ".join(map(str, arity))
-        c.err("E205", f"`{f}` takes {want} argument{'s' if arity != (1,) else ''}, not {n}",
-              e.span)
+        c.err("E205", f"`{f}` takes {want} argument{'s' if arity != (1,) else ''}, not {n}", e.span)
         return ERR
     kinds = [a.type.kind for a in args]
 
     def bad(i: int, want: str) -> Type:
-        c.err("E206", f"argument {i + 1} of `{f}` must be {want}, not {_a(args[i].type)}",
-              e.args[i].span)
+        c.err(
+            "E206",
+            f"argument {i + 1} of `{f}` must be {want}, not {_a(args[i].type)}",
+            e.args[i].span,
+        )
         return ERR
 
     def angle_like(i: int) -> bool:
@@ -803,8 +949,11 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
                 return bad(i, "an angle")
         return T.ROT
     if f in ("asin", "acos"):
-        return T.num(ANGLE) if kinds[0] == "num" and args[0].type.dim == SCALAR else bad(
-            0, "a unit-less number")
+        return (
+            T.num(ANGLE)
+            if kinds[0] == "num" and args[0].type.dim == SCALAR
+            else bad(0, "a unit-less number")
+        )
     if f == "atan2":
         if kinds != ["num", "num"]:
             return bad(0 if kinds[0] != "num" else 1, "a number")
@@ -815,8 +964,12 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
             return bad(0, "a number")
         d = args[0].type.dim
         if d.length % 2 or d.angle:
-            c.err("E228", f"the square root of a {d} has no unit here", e.span,
-                  "square roots take unit-less numbers or areas (length^2)")
+            c.err(
+                "E228",
+                f"the square root of a {d} has no unit here",
+                e.span,
+                "square roots take unit-less numbers or areas (length^2)",
+            )
             return ERR
         return T.num(Dim(d.length // 2))
     if f == "abs":

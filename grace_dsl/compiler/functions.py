@@ -13,9 +13,9 @@ from typing import Any
 
 import casadi as ca
 
+from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import CASADI
 from grace_dsl.compiler.check import Checked
-from grace_dsl.compiler import se3
 from grace_dsl.compiler.lower import Lowered, lower
 
 
@@ -50,36 +50,64 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
 
     def add(key: str, inputs: list[tuple[str, Any]], outputs: list[tuple[str, Any]]) -> None:
         ident = f"f{len(fns)}_{key.split(':')[0]}"
-        fns[key] = ca.Function(ident, [v for _, v in inputs], [v for _, v in outputs],
-                               [n for n, _ in inputs], [n for n, _ in outputs])
+        fns[key] = ca.Function(
+            ident,
+            [v for _, v in inputs],
+            [v for _, v in outputs],
+            [n for n, _ in inputs],
+            [n for n, _ in outputs],
+        )
 
     for link, pose in low.links.items():
         add(fn_key("link", link), [("p", p), ("q", q)], [("T", _mat(pose))])
     for gname, g in low.grasps.items():
         gv = _column(list(g.symbols), "g")
         add(fn_key("grasp", gname), [("p", p), ("q", q), ("g", gv)], [("T", _mat(g.pose))])
-        add(fn_key("grasp_range", gname), [("p", p)],
-            [("lo", _vec([f.lo for f in g.free])), ("hi", _vec([f.hi for f in g.free])),
-             ("default", _vec([f.default for f in g.free]))])
+        add(
+            fn_key("grasp_range", gname),
+            [("p", p)],
+            [
+                ("lo", _vec([f.lo for f in g.free])),
+                ("hi", _vec([f.hi for f in g.free])),
+                ("default", _vec([f.default for f in g.free])),
+            ],
+        )
         if g.width is not None:
             add(fn_key("grasp_width", gname), [("p", p)], [("width", g.width)])
     x = ca.SX.sym("x", 3)
     for aname, a in low.actions.items():
-        add(fn_key("force", aname), [("p", p), ("q", q), ("x", x)],
-            [("f", force_direction(low, a.name, [x[0], x[1], x[2]]))])
+        add(
+            fn_key("force", aname),
+            [("p", p), ("q", q), ("x", x)],
+            [("f", force_direction(low, a.name, [x[0], x[1], x[2]]))],
+        )
     add("requires", [("p", p)], [("r", _vec([r.residual for r in low.requires]))])
     moving = [j for j in low.joints if j.kind != "fixed"]
-    add("joint_limits", [("p", p)],
-        [("lo", _vec([j.lo if j.lo is not None else -ca.inf for j in moving])),
-         ("hi", _vec([j.hi if j.hi is not None else ca.inf for j in moving]))])
-    add("joint_axes", [("p", p), ("q", q)],
-        [("axis", _vec([a for j in moving for a in j.axis])),
-         ("origin", _vec([o for j in moving for o in j.origin]))])
+    add(
+        "joint_limits",
+        [("p", p)],
+        [
+            ("lo", _vec([j.lo if j.lo is not None else -ca.inf for j in moving])),
+            ("hi", _vec([j.hi if j.hi is not None else ca.inf for j in moving])),
+        ],
+    )
+    add(
+        "joint_axes",
+        [("p", p), ("q", q)],
+        [
+            ("axis", _vec([a for j in moving for a in j.axis])),
+            ("origin", _vec([o for j in moving for o in j.origin])),
+        ],
+    )
     for shape in low.shapes:
-        args = [v for val in shape.args.values() for v in (val if isinstance(val, tuple) else
-                                                          (val,))]
-        add(fn_key("shape", shape.name), [("p", p), ("q", q)],
-            [("T", _mat(shape.pose)), ("args", _vec(args))])
+        args = [
+            v for val in shape.args.values() for v in (val if isinstance(val, tuple) else (val,))
+        ]
+        add(
+            fn_key("shape", shape.name),
+            [("p", p), ("q", q)],
+            [("T", _mat(shape.pose)), ("args", _vec(args))],
+        )
     return Compiled(low, fns)
 
 
@@ -103,6 +131,7 @@ def sympy_model(checked: Checked, name: str) -> Lowered:
     import sympy as sp
 
     from grace_dsl.compiler.sympy_backend import SYMPY
+
     def make(kind: str, sym: str) -> sp.Symbol:
         label = {"p": sym, "q": f"q_{sym}", "g": sym.split(":", 1)[-1]}[kind]
         return sp.Symbol(label, real=True)

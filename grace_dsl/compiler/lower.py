@@ -187,8 +187,16 @@ class _Instance:
     def _lift(self, cc: CheckedConcept, p: ast.Param, prefix: str) -> Any:
         t = cc.param_types[p.name]
         lo, hi = cc.bounds.get(p.name, (None, None))
-        info = ParamInfo(prefix + p.name, t, t.size if t.kind == "vec" else 1, lo, hi,
-                         cc.defaults.get(p.name), p.help, p.doc)
+        info = ParamInfo(
+            prefix + p.name,
+            t,
+            t.size if t.kind == "vec" else 1,
+            lo,
+            hi,
+            cc.defaults.get(p.name),
+            p.help,
+            p.doc,
+        )
         self.out.params.append(info)
         symbols = [self.sym("p", n) for n in symbol_names(info)]
         self.out.p += symbols
@@ -204,8 +212,14 @@ class _Instance:
         return bound
 
     # -- kinematics
-    def _joints(self, decl: ast.Concept, prefix: str, ev: Evaluator, poses: dict[str, Any],
-                link_of: dict[str, str]) -> None:
+    def _joints(
+        self,
+        decl: ast.Concept,
+        prefix: str,
+        ev: Evaluator,
+        poses: dict[str, Any],
+        link_of: dict[str, str],
+    ) -> None:
         pending = [m for m in decl.members if isinstance(m, ast.Joint)]
         while pending:
             ready = [j for j in pending if j.parent in poses]
@@ -215,13 +229,17 @@ class _Instance:
                 pending.remove(j)
                 poses[j.child] = self._joint(j, prefix, ev, poses[j.parent], link_of)
 
-    def _joint(self, j: ast.Joint, prefix: str, ev: Evaluator, parent_pose: Any,
-               link_of: dict[str, str]) -> Any:
+    def _joint(
+        self, j: ast.Joint, prefix: str, ev: Evaluator, parent_pose: Any, link_of: dict[str, str]
+    ) -> Any:
         name = prefix + j.name
         sign = j.opens if j.opens is not None else 1
         if j.kind == "fixed":
-            self.out.joints.append(JointInfo(name, j.kind, link_of[j.parent], link_of[j.child],
-                                             None, None, None, None, j.doc))
+            self.out.joints.append(
+                JointInfo(
+                    name, j.kind, link_of[j.parent], link_of[j.child], None, None, None, None, j.doc
+                )
+            )
             return parent_pose
         qv = self.sym("q", name)
         self.out.q.append(qv)
@@ -234,20 +252,31 @@ class _Instance:
             angle = sign * qv
             rot = se3.axis_angle(axis, self.b.cos(angle), self.b.sin(angle))
             back = tuple(-o for o in origin)
-            motion = se3.matmul(se3.translation(origin),
-                                se3.matmul(se3.pose(rot, (0, 0, 0)), se3.translation(back)))
+            motion = se3.matmul(
+                se3.translation(origin), se3.matmul(se3.pose(rot, (0, 0, 0)), se3.translation(back))
+            )
         lo = ev(j.limits.lo) if j.limits is not None else None
         hi = ev(j.limits.hi) if j.limits is not None else None
         rot_parent = se3.rotation_of(parent_pose)
         world_axis = tuple(sign * a for a in se3.matvec(rot_parent, axis))
         world_origin = se3.transform_point(parent_pose, origin)
-        self.out.joints.append(JointInfo(name, j.kind, link_of[j.parent], link_of[j.child], lo,
-                                         hi, world_axis, world_origin, j.doc))
+        self.out.joints.append(
+            JointInfo(
+                name,
+                j.kind,
+                link_of[j.parent],
+                link_of[j.child],
+                lo,
+                hi,
+                world_axis,
+                world_origin,
+                j.doc,
+            )
+        )
         return se3.matmul(parent_pose, motion)
 
     # -- geometry and manipulation
-    def _shape(self, s: ast.Shape, prefix: str, link: str, link_pose: Any,
-               ev: Evaluator) -> None:
+    def _shape(self, s: ast.Shape, prefix: str, link: str, link_pose: Any, ev: Evaluator) -> None:
         v = s.value
         assert isinstance(v, ast.Call)
         pose = link_pose if s.at is None else se3.matmul(link_pose, _as_pose(ev(s.at)))
@@ -261,8 +290,15 @@ class _Instance:
         args = {k: _as_backend(self.b, val) for k, val in args.items()}
         self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose))
 
-    def _grasp(self, cc: CheckedConcept, g: ast.Grasp, prefix: str, link: str, link_pose: Any,
-               ev: Evaluator) -> None:
+    def _grasp(
+        self,
+        cc: CheckedConcept,
+        g: ast.Grasp,
+        prefix: str,
+        link: str,
+        link_pose: Any,
+        ev: Evaluator,
+    ) -> None:
         name = prefix + g.name
         free, symbols = [], []
         for fp in g.free:
@@ -271,15 +307,24 @@ class _Instance:
             default = ev(fp.default) if fp.default is not None else (lo + hi) / 2
             free.append(FreeInfo(fp.name, cc.free_types[g.name][fp.name], lo, hi, default))
             symbols.append(sym)
-        sub = Evaluator(self.b, ev.types, {**ev.env, **dict(zip((f.name for f in g.free),
-                                                                symbols))}, ev.lazy)
+        sub = Evaluator(
+            self.b, ev.types, {**ev.env, **dict(zip((f.name for f in g.free), symbols))}, ev.lazy
+        )
         pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
         width = sub(g.width) if g.width is not None else None
-        self.out.grasps[name] = GraspInfo(name, link, tuple(free), tuple(symbols), pose, width,
-                                          g.doc, g)
+        self.out.grasps[name] = GraspInfo(
+            name, link, tuple(free), tuple(symbols), pose, width, g.doc, g
+        )
 
-    def _part(self, m: ast.Part, prefix: str, link: str, link_pose: Any, ev: Evaluator,
-              bound: dict[str, Any]) -> None:
+    def _part(
+        self,
+        m: ast.Part,
+        prefix: str,
+        link: str,
+        link_pose: Any,
+        ev: Evaluator,
+        bound: dict[str, Any],
+    ) -> None:
         host = link_pose if m.at is None else se3.matmul(link_pose, _as_pose(ev(m.at)))
         self.out.parts[prefix + m.name] = m.concept
         self.build(self.checked.concepts[m.concept], f"{prefix}{m.name}.", bound, host, link)
@@ -291,14 +336,20 @@ class _Instance:
             direction = _unit(self.b, se3.matvec(se3.rotation_of(frame), ev(a.direction)))
         joint = prefix + a.joint if a.joint else None
         self.out.actions[prefix + a.name] = ActionInfo(
-            prefix + a.name, a.verb, joint, 1 if sense == "opening" else -1, direction,
-            tuple(prefix + u for u in a.using), a.doc,
+            prefix + a.name,
+            a.verb,
+            joint,
+            1 if sense == "opening" else -1,
+            direction,
+            tuple(prefix + u for u in a.using),
+            a.doc,
         )
 
     def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
         where = f"{prefix}: " if prefix else ""
-        self.out.requires.append(RequireInfo(residual(self.b, ev, r.cond),
-                                             where + (r.message or ""), _brief(r)))
+        self.out.requires.append(
+            RequireInfo(residual(self.b, ev, r.cond), where + (r.message or ""), _brief(r))
+        )
 
 
 def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:

@@ -54,8 +54,11 @@ def source_text(source: str, span: ast.Span) -> str:
     if span.line == span.end_line:
         text = lines[span.line - 1][span.col - 1 : span.end_col - 1]
     else:
-        chunk = [lines[span.line - 1][span.col - 1 :], *lines[span.line : span.end_line - 1],
-                 lines[span.end_line - 1][: span.end_col - 1]]
+        chunk = [
+            lines[span.line - 1][span.col - 1 :],
+            *lines[span.line : span.end_line - 1],
+            lines[span.end_line - 1][: span.end_col - 1],
+        ]
         text = " ".join(chunk)
     return " ".join(text.split())
 
@@ -85,8 +88,14 @@ def concept_entry(
         "n_params": int(offsets[-1]),
         "links": [{"name": n, "doc": low.link_docs.get(n, "")} for n in low.links],
         "joints": [
-            {"name": j.name, "kind": j.kind, "parent": j.parent, "child": j.child, "doc": j.doc,
-             "index": moving.index(j) if j in moving else None}
+            {
+                "name": j.name,
+                "kind": j.kind,
+                "parent": j.parent,
+                "child": j.child,
+                "doc": j.doc,
+                "index": moving.index(j) if j in moving else None,
+            }
             for j in low.joints
         ],
         "grasps": [
@@ -96,23 +105,34 @@ def concept_entry(
                 "doc": g.doc,
                 "free": [{"name": f.name, **_type_fields(f.type)} for f in g.free],
                 "has_width": g.width is not None,
-                "source": source_text(source, g.source.pose.span)
-                if "." not in g.name else "",
+                "source": source_text(source, g.source.pose.span) if "." not in g.name else "",
                 "formula": _formula(exact.grasps[g.name].pose),
             }
             for g in low.grasps.values()
         ],
         "actions": [
-            {"name": a.name, "verb": a.verb, "joint": a.joint,
-             "sense": "opening" if a.sign > 0 else "closing",
-             "direction": a.direction is not None, "using": list(a.using), "doc": a.doc}
+            {
+                "name": a.name,
+                "verb": a.verb,
+                "joint": a.joint,
+                "sense": "opening" if a.sign > 0 else "closing",
+                "direction": a.direction is not None,
+                "using": list(a.using),
+                "doc": a.doc,
+            }
             for a in low.actions.values()
         ],
         "shapes": [
-            {"name": s.name, "link": s.link, "primitive": s.primitive,
-             "operands": list(s.operands),
-             "args": [{"name": k, "size": len(v) if isinstance(v, tuple) else 1}
-                      for k, v in s.args.items()]}
+            {
+                "name": s.name,
+                "link": s.link,
+                "primitive": s.primitive,
+                "operands": list(s.operands),
+                "args": [
+                    {"name": k, "size": len(v) if isinstance(v, tuple) else 1}
+                    for k, v in s.args.items()
+                ],
+            }
             for s in low.shapes
         ],
         "parts": dict(low.parts),

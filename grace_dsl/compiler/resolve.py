@@ -18,8 +18,34 @@ from grace_dsl.lang.parser import parse
 
 BASE_LINK = "base"
 BUILTIN_NAMES = frozenset(
-    "sin cos tan asin acos atan2 sqrt abs min max clamp dot cross norm normalize "
-    "rotx roty rotz rpy axis_angle trans inv union difference pi base".split()
+    [
+        "sin",
+        "cos",
+        "tan",
+        "asin",
+        "acos",
+        "atan2",
+        "sqrt",
+        "abs",
+        "min",
+        "max",
+        "clamp",
+        "dot",
+        "cross",
+        "norm",
+        "normalize",
+        "rotx",
+        "roty",
+        "rotz",
+        "rpy",
+        "axis_angle",
+        "trans",
+        "inv",
+        "union",
+        "difference",
+        "pi",
+        "base",
+    ]
 )
 
 
@@ -60,9 +86,9 @@ def stdlib_dir() -> Path:
     return Path(__file__).resolve().parent.parent / "concepts"
 
 
-def resolve(paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()) -> tuple[
-    Program, list[Diagnostic]
-]:
+def resolve(
+    paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()
+) -> tuple[Program, list[Diagnostic]]:
     """Load ``paths`` (files or directories of .eac files) and everything they import."""
     diags: list[Diagnostic] = []
     prog = Program()
@@ -107,7 +133,9 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
         elif p.is_file():
             files.append(p.resolve())
         else:
-            diags.append(error("E006", f"no such file or directory: {p}", ast.Span(str(p), 0, 0, 0, 0)))
+            diags.append(
+                error("E006", f"no such file or directory: {p}", ast.Span(str(p), 0, 0, 0, 0))
+            )
     return files
 
 
@@ -116,7 +144,9 @@ def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
         text = path.read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         reason = "it is not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else exc.strerror
-        diags.append(error("E006", f"cannot read {path}: {reason}", ast.Span(str(path), 0, 0, 0, 0)))
+        diags.append(
+            error("E006", f"cannot read {path}: {reason}", ast.Span(str(path), 0, 0, 0, 0))
+        )
         return SourceFile(str(path), "", None)
     result = parse(text, str(path))
     diags += result.diagnostics
@@ -147,9 +177,15 @@ def _import_cycles(prog: Program) -> list[Diagnostic]:
         state[f] = 1
         for g in prog.imports.get(f, []):
             if state.get(g) == 1:
-                cycle = " -> ".join(Path(x).stem for x in [*stack[stack.index(g):], f, g])
-                diags.append(error("E102", f"import cycle: {cycle}", _use_span(prog, f, g),
-                                   "move the shared concepts into a module both can import"))
+                cycle = " -> ".join(Path(x).stem for x in [*stack[stack.index(g) :], f, g])
+                diags.append(
+                    error(
+                        "E102",
+                        f"import cycle: {cycle}",
+                        _use_span(prog, f, g),
+                        "move the shared concepts into a module both can import",
+                    )
+                )
             elif g not in state:
                 visit(g, [*stack, f])
         state[f] = 2
@@ -182,8 +218,14 @@ def _collect_concepts(prog: Program) -> list[Diagnostic]:
             first = prog.concepts.get(c.name)
             if first is not None:
                 s = first.decl.name_span
-                diags.append(error("E104", f"concept `{c.name}` is defined twice", c.name_span,
-                                   f"first defined at {s.file}:{s.line}:{s.col}"))
+                diags.append(
+                    error(
+                        "E104",
+                        f"concept `{c.name}` is defined twice",
+                        c.name_span,
+                        f"first defined at {s.file}:{s.line}:{s.col}",
+                    )
+                )
                 continue
             prog.concepts[c.name] = ConceptEntry(c, path)
     return diags
@@ -207,18 +249,26 @@ def _visibility(prog: Program) -> list[Diagnostic]:
                         seen[name] = target
                     elif use.names is not None:
                         span = use.name_spans[i] if i < len(use.name_spans) else use.span
-                        diags.append(error("E103", f"`{name}` is not defined in module "
-                                           f"`{'.'.join(use.module)}`", span,
-                                           did_you_mean(name, exported)))
+                        diags.append(
+                            error(
+                                "E103",
+                                f"`{name}` is not defined in module `{'.'.join(use.module)}`",
+                                span,
+                                did_you_mean(name, exported),
+                            )
+                        )
         prog.visible[path] = seen
     return diags
 
 
 def _targets(prog: Program, path: str, module: ast.Module) -> list[str | None]:
     """The file each ``use`` of a module resolved to (None where it did not)."""
-    found = {Path(t).with_suffix("").parts[-len(u.module):]: t for u in module.uses
-             for t in prog.imports.get(path, [])
-             if Path(t).with_suffix("").parts[-len(u.module):] == u.module}
+    found = {
+        Path(t).with_suffix("").parts[-len(u.module) :]: t
+        for u in module.uses
+        for t in prog.imports.get(path, [])
+        if Path(t).with_suffix("").parts[-len(u.module) :] == u.module
+    }
     return [found.get(u.module) for u in module.uses]
 
 
@@ -242,20 +292,38 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     dropped = prog.dropped(file)
     for m in flat_members(c):
         if c.kind == "primitive" and not isinstance(m, (ast.Param, ast.Require)):
-            diags.append(error("E114", f"a primitive declares only `param` and `require`, not "
-                               f"`{type(m).__name__.lower()}`", m.span,
-                               "its geometry comes from grace_dsl.geometry"))
+            diags.append(
+                error(
+                    "E114",
+                    f"a primitive declares only `param` and `require`, not "
+                    f"`{type(m).__name__.lower()}`",
+                    m.span,
+                    "its geometry comes from grace_dsl.geometry",
+                )
+            )
         if isinstance(m, ast.Require):
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
         if name in BUILTIN_NAMES:
-            diags.append(error("E113", f"`{name}` is a built-in name and cannot be redefined",
-                               span, f"rename it, e.g. `{name}_`"))
+            diags.append(
+                error(
+                    "E113",
+                    f"`{name}` is a built-in name and cannot be redefined",
+                    span,
+                    f"rename it, e.g. `{name}_`",
+                )
+            )
         elif name in seen:
             first = seen[name]
-            diags.append(error("E105", f"`{name}` is already defined in `{c.name}`", span,
-                               f"first defined at line {first.line}"))
+            diags.append(
+                error(
+                    "E105",
+                    f"`{name}` is already defined in `{c.name}`",
+                    span,
+                    f"first defined at line {first.line}",
+                )
+            )
         else:
             seen[name] = span
     visible = prog.visible.get(file, {})
@@ -265,16 +333,29 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     for m in flat_members(c):
         if isinstance(m, ast.Part) and m.concept not in visible and m.concept not in dropped:
             hint = did_you_mean(m.concept, visible) or (
-                f"import it with `use ...{{{m.concept}}}`" if m.concept in prog.concepts else None)
+                f"import it with `use ...{{{m.concept}}}`" if m.concept in prog.concepts else None
+            )
             diags.append(error("E107", f"unknown concept `{m.concept}`", m.concept_span, hint))
         if isinstance(m, ast.Action):
             if m.joint is not None and m.joint not in joints and m.joint not in dropped:
-                diags.append(error("E109", f"`{m.joint}` is not a joint of `{c.name}`",
-                                   m.joint_span, did_you_mean(m.joint, joints)))
+                diags.append(
+                    error(
+                        "E109",
+                        f"`{m.joint}` is not a joint of `{c.name}`",
+                        m.joint_span,
+                        did_you_mean(m.joint, joints),
+                    )
+                )
             for g in m.using:
                 if not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
-                    diags.append(error("E110", f"`{g}` is not a grasp of `{c.name}`", m.span,
-                                       did_you_mean(g, grasps)))
+                    diags.append(
+                        error(
+                            "E110",
+                            f"`{g}` is not a grasp of `{c.name}`",
+                            m.span,
+                            did_you_mean(g, grasps),
+                        )
+                    )
     diags += _check_link_tree(c, links, dropped)
     return diags
 
@@ -297,14 +378,27 @@ def _check_link_tree(c: ast.Concept, links: set[str], dropped: frozenset[str]) -
     for j in (m for m in c.members if isinstance(m, ast.Joint)):
         for end, span in ((j.parent, j.parent_span), (j.child, j.child_span)):
             if end not in known and end not in dropped:
-                diags.append(error("E108", f"unknown link `{end}`", span,
-                                   did_you_mean(end, known) or "declare it with `link name { ... }`"))
+                diags.append(
+                    error(
+                        "E108",
+                        f"unknown link `{end}`",
+                        span,
+                        did_you_mean(end, known) or "declare it with `link name { ... }`",
+                    )
+                )
         if j.child == BASE_LINK:
-            diags.append(error("E112", "`base` is the root link and cannot be a joint's child",
-                               j.child_span))
+            diags.append(
+                error("E112", "`base` is the root link and cannot be a joint's child", j.child_span)
+            )
         elif j.child in parent_of:
-            diags.append(error("E112", f"link `{j.child}` already has a parent joint",
-                               j.child_span, "a link hangs from exactly one joint"))
+            diags.append(
+                error(
+                    "E112",
+                    f"link `{j.child}` already has a parent joint",
+                    j.child_span,
+                    "a link hangs from exactly one joint",
+                )
+            )
         else:
             parent_of[j.child] = j.parent
     for link in sorted(links):
@@ -312,20 +406,30 @@ def _check_link_tree(c: ast.Concept, links: set[str], dropped: frozenset[str]) -
         while node in parent_of:
             node = parent_of[node]
             if node in seen:
-                diags.append(error("E112", f"the joints around link `{link}` form a cycle",
-                                   _link_span(c, link)))
+                diags.append(
+                    error(
+                        "E112", f"the joints around link `{link}` form a cycle", _link_span(c, link)
+                    )
+                )
                 break
             seen.add(node)
         else:
             if node != BASE_LINK and node not in dropped:
-                diags.append(error("E112", f"link `{node}` is not attached to `base`",
-                                   _link_span(c, node), f"add `joint j : fixed(base -> {node})`"))
+                diags.append(
+                    error(
+                        "E112",
+                        f"link `{node}` is not attached to `base`",
+                        _link_span(c, node),
+                        f"add `joint j : fixed(base -> {node})`",
+                    )
+                )
     return diags
 
 
 def _link_span(c: ast.Concept, name: str) -> ast.Span:
-    return next((m.name_span for m in c.members if isinstance(m, ast.Link) and m.name == name),
-                c.name_span)
+    return next(
+        (m.name_span for m in c.members if isinstance(m, ast.Link) and m.name == name), c.name_span
+    )
 
 
 def _part_cycles(prog: Program) -> list[Diagnostic]:
@@ -335,8 +439,13 @@ def _part_cycles(prog: Program) -> list[Diagnostic]:
         for first in (m for m in flat_members(entry.decl) if isinstance(m, ast.Part)):
             chain = _path_back(prog, first.concept, name, (name, first.concept))
             if chain is not None:
-                diags.append(error("E111", f"`{name}` contains itself: {' -> '.join(chain)}",
-                                   first.concept_span))
+                diags.append(
+                    error(
+                        "E111",
+                        f"`{name}` contains itself: {' -> '.join(chain)}",
+                        first.concept_span,
+                    )
+                )
                 break
     return diags
 

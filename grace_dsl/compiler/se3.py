@@ -22,8 +22,11 @@ def matvec(a: Mat, v: Vec) -> Vec:
 
 
 def _dot(a: Vec, b: Vec) -> Any:
-    terms = [y if _is_one(x) else x if _is_one(y) else x * y
-             for x, y in zip(a, b) if not (_is_zero(x) or _is_zero(y))]
+    terms = [
+        y if _is_one(x) else x if _is_one(y) else x * y
+        for x, y in zip(a, b)
+        if not (_is_zero(x) or _is_zero(y))
+    ]
     if not terms:
         return 0
     total = terms[0]

@@ -66,8 +66,9 @@ class SympyBackend:
         return sp.Piecewise((a, c), (b, True))
 
     def compare(self, op: str, a: Any, b: Any) -> Any:
-        return {"<": sp.Lt, "<=": sp.Le, ">": sp.Gt, ">=": sp.Ge,
-                "==": sp.Eq, "!=": sp.Ne}[op](a, b)
+        return {"<": sp.Lt, "<=": sp.Le, ">": sp.Gt, ">=": sp.Ge, "==": sp.Eq, "!=": sp.Ne}[op](
+            a, b
+        )
 
     def and_(self, a: Any, b: Any) -> Any:
         return sp.And(a, b)

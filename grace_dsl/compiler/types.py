@@ -74,7 +74,13 @@ SHAPE = Type("shape")
 INT = Type("num", SCALAR, 1, (), True)
 
 UNIT_DIMS = {"scalar": SCALAR, "length": LENGTH, "angle": ANGLE}
-SCALAR_TYPES = {"scalar": num(), "length": num(LENGTH), "angle": num(ANGLE), "int": INT, "bool": BOOL}
+SCALAR_TYPES = {
+    "scalar": num(),
+    "length": num(LENGTH),
+    "angle": num(ANGLE),
+    "int": INT,
+    "bool": BOOL,
+}
 VECTOR_TYPES = {"vec2": 2, "vec3": 3}
 # Literal units: how one of them converts to SI, as an exact fraction and a multiple of pi.
 UNIT_FACTORS: dict[str, tuple[Dim, int, int, bool]] = {

@@ -29,7 +29,7 @@ NO_SPAN = Span("<builtin>", 0, 0, 0, 0)
 
 
 def _span() -> Span:
-    return field(default=NO_SPAN, compare=False, repr=False)  # type: ignore[no-any-return]
+    return field(default=NO_SPAN, compare=False, repr=False)
 
 
 # ---- expressions --------------------------------------------------------------------------------
@@ -113,7 +113,7 @@ class IfExpr:
     span: Span = _span()
 
 
-Expr = Union[Number, Name, String, Bool, Unary, Binary, Call, Vector, Member, IfExpr]
+Expr = Union[Number, Name, String, Bool, Unary, Binary, Call, Vector, Member, IfExpr]  # noqa: UP007
 
 COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
 

@@ -28,7 +28,20 @@ MAX_DEPTH = 64
 MAX_RECOVERIES = 25
 UNITS = ("mm", "cm", "m", "deg", "rad")
 SYNC_KEYWORDS = frozenset(
-    "param require let shape part link joint grasp action concept primitive use".split()
+    [
+        "param",
+        "require",
+        "let",
+        "shape",
+        "part",
+        "link",
+        "joint",
+        "grasp",
+        "action",
+        "concept",
+        "primitive",
+        "use",
+    ]
 )
 
 
@@ -121,7 +134,7 @@ def _parse_once(text: str, path: str) -> ast.Module:
     with _PARSE_LOCK:  # the inline builder holds per-parse state
         builder.path, builder.depth = path, {}
         try:
-            items = lark.parse(text)
+            items: list[Any] = lark.parse(text)  # type: ignore[assignment]  # inline builder
         finally:
             builder.depth = {}
     uses = tuple(i for i in items if isinstance(i, ast.Use))
@@ -155,7 +168,7 @@ def _string_value(tok: Token) -> str:
     return re.sub(r"\\(.)", lambda m: {"n": "\n", "t": "\t"}.get(m.group(1), m.group(1)), body)
 
 
-class _Builder(Transformer):  # type: ignore[type-arg]
+class _Builder(Transformer):
     """Inline (bottom-up) construction of the AST while the LALR parser reduces."""
 
     def __init__(self, path: str):
@@ -239,7 +252,9 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         docs, name, type_ref, *rest = c
         trailing = rest.pop()
         bounds = next((x.value for x in rest if isinstance(x, _Clause) and x.tag == "range"), None)
-        default = next((x.value for x in rest if isinstance(x, _Clause) and x.tag == "default"), None)
+        default = next(
+            (x.value for x in rest if isinstance(x, _Clause) and x.tag == "default"), None
+        )
         help_tok = next((x for x in rest if isinstance(x, Token)), None)
         last = help_tok or default or (bounds and bounds.hi) or type_ref
         return ast.Param(
@@ -256,7 +271,9 @@ class _Builder(Transformer):  # type: ignore[type-arg]
     def type_named(self, c: list[Token | None]) -> ast.TypeRef:
         name, unit = c[0], c[1] if len(c) > 1 else None
         assert name is not None
-        return ast.TypeRef(name.value, unit.value if unit else None, None, self._span(name, unit or name))
+        return ast.TypeRef(
+            name.value, unit.value if unit else None, None, self._span(name, unit or name)
+        )
 
     def type_choice(self, c: list[Token | None]) -> ast.TypeRef:
         toks = [t for t in c if t is not None]
@@ -283,7 +300,10 @@ class _Builder(Transformer):  # type: ignore[type-arg]
     def let_decl(self, c: list[Any]) -> ast.Let:
         docs, name, value, trailing = c
         return ast.Let(
-            name.value, value, self._docs(docs, trailing), self._span(name, value),
+            name.value,
+            value,
+            self._docs(docs, trailing),
+            self._span(name, value),
             _tok_span(self.path, name),
         )
 
@@ -292,7 +312,11 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         trailing = rest.pop()
         at = rest[0].value if rest and rest[0] is not None else None
         return ast.Shape(
-            name.value, value, at, self._docs(docs, trailing), self._span(name, at or value),
+            name.value,
+            value,
+            at,
+            self._docs(docs, trailing),
+            self._span(name, at or value),
             _tok_span(self.path, name),
         )
 
@@ -315,7 +339,10 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         docs, name, *members = c
         trailing = members.pop()
         return ast.Link(
-            name.value, tuple(members), self._docs(docs, trailing), _tok_span(self.path, name),
+            name.value,
+            tuple(members),
+            self._docs(docs, trailing),
+            _tok_span(self.path, name),
             _tok_span(self.path, name),
         )
 
@@ -364,8 +391,13 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         pose = rest[0]
         width = rest[1].value if len(rest) > 1 and rest[1] is not None else None
         return ast.Grasp(
-            name.value, free, pose, width, self._docs(docs, trailing),
-            self._span(name, width or pose), _tok_span(self.path, name),
+            name.value,
+            free,
+            pose,
+            width,
+            self._docs(docs, trailing),
+            self._span(name, width or pose),
+            _tok_span(self.path, name),
         )
 
     def grasp_free(self, c: list[Any]) -> _Clause:
@@ -461,8 +493,12 @@ class _Builder(Transformer):  # type: ignore[type-arg]
         span = _tok_span(self.path, tok)
         if not math.isfinite(float(digits)):
             raise _BadNumber(
-                error("E005", f"number `{tok.value}` is too large to represent", span,
-                      "numbers must stay below about 1e308")
+                error(
+                    "E005",
+                    f"number `{tok.value}` is too large to represent",
+                    span,
+                    "numbers must stay below about 1e308",
+                )
             )
         return ast.Number(digits, unit, span)
 
@@ -504,12 +540,29 @@ class _Builder(Transformer):  # type: ignore[type-arg]
 # ---- syntax errors ------------------------------------------------------------------------------
 
 _TOKEN_NAMES = {
-    "NAME": "a name", "NUMBER": "a number", "QUANTITY": "a number with a unit",
-    "STRING": "a string", "DOC": "a `///` doc comment", "TDOC": "a `///` doc comment",
-    "LBRACE": "`{`", "RBRACE": "`}`", "LPAR": "`(`", "RPAR": "`)`", "LSQB": "`[`",
-    "RSQB": "`]`", "COMMA": "`,`", "COLON": "`:`", "EQUAL": "`=`", "DOT": "`.`",
-    "CMP_OP": "a comparison", "ADD_OP": "`+` or `-`", "MUL_OP": "`*` or `/`", "POW_OP": "`^`",
-    "SIGN": "`+` or `-`", "$END": "end of file", "MORETHAN": "`>`",
+    "NAME": "a name",
+    "NUMBER": "a number",
+    "QUANTITY": "a number with a unit",
+    "STRING": "a string",
+    "DOC": "a `///` doc comment",
+    "TDOC": "a `///` doc comment",
+    "LBRACE": "`{`",
+    "RBRACE": "`}`",
+    "LPAR": "`(`",
+    "RPAR": "`)`",
+    "LSQB": "`[`",
+    "RSQB": "`]`",
+    "COMMA": "`,`",
+    "COLON": "`:`",
+    "EQUAL": "`=`",
+    "DOT": "`.`",
+    "CMP_OP": "a comparison",
+    "ADD_OP": "`+` or `-`",
+    "MUL_OP": "`*` or `/`",
+    "POW_OP": "`^`",
+    "SIGN": "`+` or `-`",
+    "$END": "end of file",
+    "MORETHAN": "`>`",
 }
 
 
@@ -531,10 +584,14 @@ def _expected_list(expected: set[str]) -> str:
 def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic:
     line, col = exc.line if exc.line > 0 else 1, exc.column if exc.column > 0 else 1
     if isinstance(exc, UnexpectedCharacters):
-        ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else ""
+        pos = exc.pos_in_stream or 0
+        ch = text[pos] if pos < len(text) else ""
         span = ast.Span(path, line, col, line, col + 1)
-        hint = {"'": "strings use double quotes", "#": "comments start with `//`",
-                ";": "declarations need no `;`"}.get(ch)
+        hint = {
+            "'": "strings use double quotes",
+            "#": "comments start with `//`",
+            ";": "declarations need no `;`",
+        }.get(ch)
         if ch == '"':
             hint = "a string must end on the line it starts"
         return error("E001", f"unexpected character {ch!r}", span, hint)
@@ -544,8 +601,9 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
         last = text.rstrip().splitlines() or [""]
         span = ast.Span(path, len(last), len(last[-1]) + 1, len(last), len(last[-1]) + 2)
         expected = _expected_list(set(getattr(exc, "expected", ()) or ()))
-        return error("E003", f"unexpected end of file; expected {expected}", span,
-                     "is a `}` or `)` missing?")
+        return error(
+            "E003", f"unexpected end of file; expected {expected}", span, "is a `}` or `)` missing?"
+        )
     assert isinstance(exc, UnexpectedToken)
     tok = exc.token
     span = _tok_span(path, tok)
@@ -555,7 +613,8 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
     if prev is not None:
         span = ast.Span(path, prev[0], prev[1], prev[0], prev[1] + 1)
         message = f"declaration ends too early, before `{tok.value}` on line {tok.line}; " + (
-            f"expected {_expected_list(set(exc.expected))}")
+            f"expected {_expected_list(set(exc.expected))}"
+        )
     return error("E002", message, span, _token_hint(exc, text))
 
 

@@ -40,17 +40,29 @@ class ParamSpec:
         def tup(v: Any) -> Any:
             return tuple(v) if isinstance(v, list) else v
 
-        return ParamSpec(e["name"], e["type"], e["kind"], e["dim"], e["size"], e["offset"],
-                         tup(e["lo"]), tup(e["hi"]), tup(e["default"]),
-                         tuple(e["choices"]) if e["choices"] else None, e["help"], e["doc"])
+        return ParamSpec(
+            e["name"],
+            e["type"],
+            e["kind"],
+            e["dim"],
+            e["size"],
+            e["offset"],
+            tup(e["lo"]),
+            tup(e["hi"]),
+            tup(e["default"]),
+            tuple(e["choices"]) if e["choices"] else None,
+            e["help"],
+            e["doc"],
+        )
 
     def encode(self, value: Any) -> np.ndarray:
         """A user value as the entries of the parameter vector, validated."""
         if self.kind == "choice":
             assert self.choices is not None
             if value not in self.choices:
-                raise ParameterError(f"{self.name} must be one of {list(self.choices)}, "
-                                     f"not {value!r}")
+                raise ParameterError(
+                    f"{self.name} must be one of {list(self.choices)}, not {value!r}"
+                )
             return np.array([float(self.choices.index(value))])
         if self.kind == "bool":
             if not isinstance(value, (bool, np.bool_)):
@@ -59,11 +71,13 @@ class ParamSpec:
         try:
             arr = np.asarray(value, dtype=float).reshape(-1)
         except (TypeError, ValueError):
-            raise ParameterError(f"{self.name} must be a number{'s' if self.size > 1 else ''}, "
-                                 f"not {value!r}") from None
+            raise ParameterError(
+                f"{self.name} must be a number{'s' if self.size > 1 else ''}, not {value!r}"
+            ) from None
         if arr.size != self.size:
-            raise ParameterError(f"{self.name} takes {self.size} value(s) ({self.type}), "
-                                 f"got {arr.size}")
+            raise ParameterError(
+                f"{self.name} takes {self.size} value(s) ({self.type}), got {arr.size}"
+            )
         if not np.all(np.isfinite(arr)):
             raise ParameterError(f"{self.name} must be finite, got {value!r}")
         if self.kind == "int" and not np.all(arr == np.round(arr)):
@@ -78,8 +92,8 @@ class ParamSpec:
         if np.any(arr < lo - 1e-12) or np.any(arr > hi + 1e-12):
             raise ParameterError(
                 f"{self.name} = {_show(arr, self.dim)} is outside its range "
-                f"[{_show(lo, self.dim)}, {_show(hi, self.dim)}] (SI units: "
-                f"{'metres' if self.dim == 'length' else 'radians' if self.dim == 'angle' else '-'})"
+                f"[{_show(lo, self.dim)}, {_show(hi, self.dim)}] (values are in SI units: "
+                f"{_SI_UNITS.get(self.dim or '', 'no unit')})"
             )
 
     def decode(self, entries: np.ndarray) -> Any:
@@ -89,6 +103,9 @@ class ParamSpec:
         if self.kind == "bool":
             return bool(entries[0])
         return tuple(float(x) for x in entries) if self.kind == "vec" else float(entries[0])
+
+
+_SI_UNITS = {"length": "metres", "angle": "radians"}
 
 
 def _show(arr: np.ndarray, dim: str | None) -> str:
@@ -107,7 +124,9 @@ def suggest(name: str, known: Any) -> str:
     return f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
 
 
-def pack_params(specs: tuple[ParamSpec, ...], values: Mapping[str, Any], concept: str) -> np.ndarray:
+def pack_params(
+    specs: tuple[ParamSpec, ...], values: Mapping[str, Any], concept: str
+) -> np.ndarray:
     """The flat parameter vector of ``values`` (missing ones take their defaults)."""
     by_name = {s.name: s for s in specs}
     for name in values:
@@ -122,9 +141,13 @@ def pack_params(specs: tuple[ParamSpec, ...], values: Mapping[str, Any], concept
     return p
 
 
-def check_requirements(residuals: np.ndarray, messages: list[str], concept: str,
-                       tol: float = 1e-12) -> None:
-    bad = [m or f"requirement {i + 1}" for i, (r, m) in enumerate(zip(residuals, messages))
-           if not r <= tol]
+def check_requirements(
+    residuals: np.ndarray, messages: list[str], concept: str, tol: float = 1e-12
+) -> None:
+    bad = [
+        m or f"requirement {i + 1}"
+        for i, (r, m) in enumerate(zip(residuals, messages))
+        if not r <= tol
+    ]
     if bad:
         raise RequirementError(f"{concept}: parameters violate: " + "; ".join(bad))

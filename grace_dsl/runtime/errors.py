@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 
 class GraceError(Exception):
     """Base of every error grace_dsl raises on purpose."""
@@ -10,7 +12,7 @@ class GraceError(Exception):
 class CompileError(GraceError):
     """A library did not compile; ``diagnostics`` holds every problem, ``str()`` renders them."""
 
-    def __init__(self, rendered: str, diagnostics: list[object]):
+    def __init__(self, rendered: str, diagnostics: Sequence[object]):
         super().__init__(rendered)
         self.diagnostics = diagnostics
 

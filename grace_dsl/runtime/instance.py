@@ -27,8 +27,9 @@ def _pose(value: Any) -> np.ndarray:
         raise ParameterError(f"pose must be a finite 4x4 matrix, got shape {m.shape}")
     r = m[:3, :3]
     if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or not np.allclose(m[3], [0, 0, 0, 1]):
-        raise ParameterError("pose must be a rigid transform (orthonormal rotation, last row "
-                             "0 0 0 1)")
+        raise ParameterError(
+            "pose must be a rigid transform (orthonormal rotation, last row 0 0 0 1)"
+        )
     return m
 
 
@@ -40,52 +41,62 @@ class Instance:
     pose: np.ndarray  # world <- concept
 
     @staticmethod
-    def create(concept: Concept, pose: Any, joints: Mapping[str, float],
-               params: Mapping[str, Any]) -> Instance:
+    def create(
+        concept: Concept, pose: Any, joints: Mapping[str, float], params: Mapping[str, Any]
+    ) -> Instance:
         p = concept.pack(**params)
-        check_requirements(np.atleast_1d(concept.function("requires")(p)).reshape(-1),
-                           [r["message"] for r in concept.entry["requires"]], concept.name)
+        check_requirements(
+            np.atleast_1d(concept.function("requires")(p)).reshape(-1),
+            [r["message"] for r in concept.entry["requires"]],
+            concept.name,
+        )
         q = np.zeros(len(concept.moving_joints))
         lo, hi = (np.atleast_1d(x).reshape(-1) for x in concept.function("joint_limits")(p))
         for name, value in joints.items():
             if name not in concept.moving_joints:
-                raise UnknownNameError(f"{concept.name} has no moving joint {name!r}"
-                                       + suggest(name, concept.moving_joints))
+                raise UnknownNameError(
+                    f"{concept.name} has no moving joint {name!r}"
+                    + suggest(name, concept.moving_joints)
+                )
             i = concept.moving_joints.index(name)
             if not np.isfinite(value) or not lo[i] - 1e-12 <= value <= hi[i] + 1e-12:
-                raise ParameterError(f"joint {name} = {value!r} is outside its range "
-                                     f"[{lo[i]:g}, {hi[i]:g}]")
+                raise ParameterError(
+                    f"joint {name} = {value!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
+                )
             q[i] = float(value)
         return Instance(concept, p, q, _pose(pose))
 
     # -- parameters and structure
     @property
     def params(self) -> dict[str, Any]:
-        return {s.name: s.decode(self.p[s.offset : s.offset + s.size]) for s in
-                self.concept.params}
+        return {s.name: s.decode(self.p[s.offset : s.offset + s.size]) for s in self.concept.params}
 
     def joint_limits(self) -> dict[str, tuple[float, float]]:
-        lo, hi = (np.atleast_1d(x).reshape(-1) for x in self.concept.function("joint_limits")(
-            self.p))
+        lo, hi = (
+            np.atleast_1d(x).reshape(-1) for x in self.concept.function("joint_limits")(self.p)
+        )
         return {n: (float(a), float(b)) for n, a, b in zip(self.concept.moving_joints, lo, hi)}
 
     def link_pose(self, link: str) -> np.ndarray:
         if link not in self.concept.links:
-            raise UnknownNameError(f"{self.concept.name} has no link {link!r}"
-                                   + suggest(link, self.concept.links))
+            raise UnknownNameError(
+                f"{self.concept.name} has no link {link!r}" + suggest(link, self.concept.links)
+            )
         return self.pose @ self.concept.function("link", link)(self.p, self.q)
 
     # -- grasps
     def _grasp_entry(self, name: str) -> dict[str, Any]:
         if name not in self.concept.grasps:
-            raise UnknownNameError(f"{self.concept.name} has no grasp {name!r}"
-                                   + suggest(name, self.concept.grasps))
+            raise UnknownNameError(
+                f"{self.concept.name} has no grasp {name!r}" + suggest(name, self.concept.grasps)
+            )
         return self.concept.grasps[name]
 
     def grasp_range(self, name: str) -> dict[str, tuple[float, float]]:
         entry = self._grasp_entry(name)
-        lo, hi, _ = (np.atleast_1d(x).reshape(-1) for x in
-                     self.concept.function("grasp_range", name)(self.p))
+        lo, hi, _ = (
+            np.atleast_1d(x).reshape(-1) for x in self.concept.function("grasp_range", name)(self.p)
+        )
         return {f["name"]: (float(a), float(b)) for f, a, b in zip(entry["free"], lo, hi)}
 
     def _free_vector(self, name: str, free: Mapping[str, float]) -> np.ndarray:
@@ -93,17 +104,20 @@ class Instance:
         names = [f["name"] for f in entry["free"]]
         for k in free:
             if k not in names:
-                raise UnknownNameError(f"grasp {name} has no free parameter {k!r}"
-                                       + suggest(k, names or ["(none)"]))
-        lo, hi, default = (np.atleast_1d(x).reshape(-1) for x in
-                           self.concept.function("grasp_range", name)(self.p))
+                raise UnknownNameError(
+                    f"grasp {name} has no free parameter {k!r}" + suggest(k, names or ["(none)"])
+                )
+        lo, hi, default = (
+            np.atleast_1d(x).reshape(-1) for x in self.concept.function("grasp_range", name)(self.p)
+        )
         g = default.copy()
         for i, k in enumerate(names):
             if k in free:
                 v = float(free[k])
                 if not np.isfinite(v) or not lo[i] - 1e-12 <= v <= hi[i] + 1e-12:
-                    raise ParameterError(f"{k} = {v!r} is outside the range of grasp {name}: "
-                                         f"[{lo[i]:g}, {hi[i]:g}]")
+                    raise ParameterError(
+                        f"{k} = {v!r} is outside the range of grasp {name}: [{lo[i]:g}, {hi[i]:g}]"
+                    )
                 g[i] = v
         return g
 
@@ -129,8 +143,9 @@ class Instance:
     # -- actions
     def _action(self, name: str) -> dict[str, Any]:
         if name not in self.concept.actions:
-            raise UnknownNameError(f"{self.concept.name} has no action {name!r}"
-                                   + suggest(name, self.concept.actions))
+            raise UnknownNameError(
+                f"{self.concept.name} has no action {name!r}" + suggest(name, self.concept.actions)
+            )
         return self.concept.actions[name]
 
     def force(self, action: str, grasp: Any) -> np.ndarray:
@@ -140,12 +155,14 @@ class Instance:
         f_local = np.asarray(self.concept.function("force", action)(self.p, self.q, point))
         f = self.pose[:3, :3] @ f_local.reshape(3)
         if not np.all(np.isfinite(f)):
-            raise ParameterError(f"the grasp point lies on the axis of {action}'s joint: no "
-                                 "direction moves it; choose a grasp away from the axis")
+            raise ParameterError(
+                f"the grasp point lies on the axis of {action}'s joint: no "
+                "direction moves it; choose a grasp away from the axis"
+            )
         return f
 
     def follow(self, action: str, grasp: Any, to: float, steps: int = 32) -> np.ndarray:
-        """The gripper path (steps, 4, 4) while the action's joint moves from its value to ``to``."""
+        """The gripper path (steps, 4, 4) as the action's joint moves from its value to ``to``."""
         entry = self._action(action)
         joint = entry["joint"]
         if joint is None:
@@ -171,13 +188,12 @@ def _spread(ranges: list[tuple[float, float]], n: int) -> np.ndarray:
     if not ranges:
         return np.zeros((n, 0))
     if len(ranges) == 1:
-        lo, hi = ranges[0]
-        return np.linspace(lo, hi, n).reshape(n, 1)
+        return np.linspace(ranges[0][0], ranges[0][1], n).reshape(n, 1)
     primes = [2, 3, 5, 7, 11, 13, 17, 19]
     pts = np.array([[_halton(i + 1, primes[d]) for d in range(len(ranges))] for i in range(n)])
-    lo = np.array([r[0] for r in ranges])
-    hi = np.array([r[1] for r in ranges])
-    return lo + pts * (hi - lo)
+    lows = np.array([r[0] for r in ranges])
+    highs = np.array([r[1] for r in ranges])
+    return lows + pts * (highs - lows)
 
 
 def _halton(i: int, base: int) -> float:

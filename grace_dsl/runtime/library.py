@@ -67,15 +67,18 @@ class Concept:
             raise UnknownNameError(f"{self.name} has no {kind} {name!r}") from None
 
     def defaults(self) -> dict[str, Any]:
-        return {p.name: p.default if p.kind != "choice" else p.decode(
-            np.atleast_1d(p.default)) for p in self.params}
+        return {
+            p.name: p.default if p.kind != "choice" else p.decode(np.atleast_1d(p.default))
+            for p in self.params
+        }
 
     def pack(self, **values: Any) -> np.ndarray:
         """The flat SI parameter vector of ``values`` (defaults for the rest), validated."""
         return pack_params(self.params, values, self.name)
 
-    def instantiate(self, pose: Any = None, joints: Mapping[str, float] | None = None,
-                    **params: Any) -> Any:
+    def instantiate(
+        self, pose: Any = None, joints: Mapping[str, float] | None = None, **params: Any
+    ) -> Any:
         """An instance at ``pose`` (4x4, world from concept) with joint values and parameters."""
         from grace_dsl.runtime.instance import Instance
 
@@ -97,8 +100,9 @@ class Library(Mapping[str, Concept]):
         try:
             return self._concepts[name]
         except KeyError:
-            raise UnknownNameError(f"no concept {name!r} in the library"
-                                   + suggest(name, self._concepts)) from None
+            raise UnknownNameError(
+                f"no concept {name!r} in the library" + suggest(name, self._concepts)
+            ) from None
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._concepts)
@@ -107,8 +111,11 @@ class Library(Mapping[str, Concept]):
         return len(self._concepts)
 
 
-def compile_paths(paths: Sequence[str | Path], cache_dir: Path | None = None,
-                  search_path: Sequence[str | Path] = ()) -> Library:
+def compile_paths(
+    paths: Sequence[str | Path],
+    cache_dir: Path | None = None,
+    search_path: Sequence[str | Path] = (),
+) -> Library:
     """Compile .eac files or directories (and what they import) into a ``Library``.
 
     Raises ``CompileError`` carrying every diagnostic when the sources have errors.

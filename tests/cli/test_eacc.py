@@ -21,8 +21,9 @@ def test_check_clean_library_exits_0(capsys: pytest.CaptureFixture[str]) -> None
     assert "ok: " in capsys.readouterr().out
 
 
-def test_check_reports_every_error_and_exits_1(tmp_path: Path,
-                                                capsys: pytest.CaptureFixture[str]) -> None:
+def test_check_reports_every_error_and_exits_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = write(tmp_path, "bad.eac", BAD)
     assert main(["check", str(path)]) == 1
     err = capsys.readouterr().err
@@ -36,13 +37,16 @@ def test_check_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     data = json.loads(capsys.readouterr().out)
     assert data["ok"] is False
     assert [(d["code"], d["line"], d["col"]) for d in data["diagnostics"]] == [
-        ("E204", 3, 24), ("E203", 4, 13)]
+        ("E204", 3, 24),
+        ("E203", 4, 13),
+    ]
 
 
 def test_usage_errors_exit_2() -> None:
     for argv in (["frobnicate"], ["check"], []):
-        proc = subprocess.run([sys.executable, "-m", "grace_dsl.cli.eacc", *argv],
-                              capture_output=True, text=True)
+        proc = subprocess.run(
+            [sys.executable, "-m", "grace_dsl.cli.eacc", *argv], capture_output=True, text=True
+        )
         assert proc.returncode == 2, argv
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from grace_dsl.compiler.functions import casadi_functions, sympy_model, sympy_matrix
+from grace_dsl.compiler.functions import casadi_functions, sympy_matrix, sympy_model
 from grace_dsl.compiler.lower import ParamInfo, symbol_names
 
 CONCEPTS = ["CurveHandle", "SunkenDoor"]
@@ -54,8 +54,10 @@ def test_backends_agree(stdlib_front_end, name: str) -> None:  # type: ignore[no
             want = np.array([[sympy_value(v, subs) for v in row] for row in pose])
             np.testing.assert_allclose(got, want, atol=1e-9, rtol=0)
         for gname, g in exact.grasps.items():
-            lo, hi, _ = (np.atleast_1d(np.asarray(x)).reshape(-1) for x in
-                         compiled.functions[f"grasp_range:{gname}"](p))
+            lo, hi, _ = (
+                np.atleast_1d(np.asarray(x)).reshape(-1)
+                for x in compiled.functions[f"grasp_range:{gname}"](p)
+            )
             gv = rng.uniform(lo, hi)
             gsubs = subs | dict(zip(g.symbols, gv))
             want_lo = [sympy_value(f.lo, subs) for f in g.free]
@@ -73,5 +75,5 @@ def test_sympy_keeps_exact_forms(stdlib_front_end) -> None:  # type: ignore[no-u
     _, checked = stdlib_front_end
     pose = sympy_matrix(sympy_model(checked, "CurveHandle").grasps["pull"].pose)
     theta, r_out = sp.Symbol("theta", real=True), sp.Symbol("r_out", real=True)
-    assert pose[:, 3].T == sp.Matrix([[r_out * sp.sin(theta), -r_out * sp.cos(theta), 0, 1]])
+    assert sp.Matrix([[r_out * sp.sin(theta), -r_out * sp.cos(theta), 0, 1]]) == pose[:, 3].T
     assert pose[2, :3] == sp.Matrix([[0, 1, 0]])

@@ -53,8 +53,12 @@ def rebuilt_names(result) -> set[str]:  # type: ignore[no-untyped-def]
 def test_incremental_rebuilds_only_dependents(tmp_path: Path) -> None:
     src, cache = library_dir(tmp_path), tmp_path / "cache"
     first = build([src], cache, use_native=False)
-    assert first.ok and rebuilt_names(first) == {"base.eac", "user.eac", "other.eac",
-                                                 "primitives.eac"}
+    assert first.ok and rebuilt_names(first) == {
+        "base.eac",
+        "user.eac",
+        "other.eac",
+        "primitives.eac",
+    }
     assert rebuilt_names(build([src], cache, use_native=False)) == set()
     write(src, "user.eac", USER.replace("500mm", "600mm"))
     assert rebuilt_names(build([src], cache, use_native=False)) == {"user.eac"}
@@ -103,16 +107,24 @@ def test_artifact_round_trip(tmp_path: Path) -> None:
     assert [p["name"] for p in slider["params"]] == ["travel", "block.size"]
     assert slider["params"][1]["lo"] == [0.001, 0.001, 0.001]
     assert slider["grasps"][0]["name"] == "block.top"
-    assert slider["actions"][0] == {"name": "push_out", "verb": "push", "joint": "slide",
-                                    "sense": "opening", "direction": False,
-                                    "using": ["block.top"], "doc": ""}
+    assert slider["actions"][0] == {
+        "name": "push_out",
+        "verb": "push",
+        "joint": "slide",
+        "sense": "opening",
+        "direction": False,
+        "using": ["block.top"],
+        "doc": "",
+    }
     loaded = load_artifact(tmp_path / "out")
     fresh = Library(result.units)
     for name in ("Block", "Slider"):
-        a = loaded[name].instantiate(**{"block.size" if name == "Slider" else "size":
-                                        (0.1, 0.2, 0.3)})
-        b = fresh[name].instantiate(**{"block.size" if name == "Slider" else "size":
-                                       (0.1, 0.2, 0.3)})
+        a = loaded[name].instantiate(
+            **{"block.size" if name == "Slider" else "size": (0.1, 0.2, 0.3)}
+        )
+        b = fresh[name].instantiate(
+            **{"block.size" if name == "Slider" else "size": (0.1, 0.2, 0.3)}
+        )
         grasp = next(iter(loaded[name].grasps))
         np.testing.assert_array_equal(a.grasps(grasp, 5), b.grasps(grasp, 5))
 

@@ -16,43 +16,49 @@ def codes(tmp_path: Path, body: str, header: str = "use primitives.{Cuboid, Ring
     return [d.code for d in diags]
 
 
-@pytest.mark.parametrize("body", [
-    "param r : length = 2mm  param a : angle = 30deg  let arc = r * a  require arc > 0mm",
-    "param r : length = 2mm  let area = r * r  let back = sqrt(area)  require back == r",
-    "param v : vec3 length = (1mm, 0, 0)  let n = norm(v)  let u = normalize(v)  "
-    "let d = dot(v, v)  let c = cross(v, v)",
-    "let p = rotz(30deg) * trans(0, 1mm, 0) * rpy(0, 0, pi / 2)  let q = inv(p) * p",
-    "param a : angle = 10deg  let s = sin(a) + cos(0.5) + tan(a)  let b = atan2(1mm, 2mm)",
-    'param side : choice{"l", "r"} = "r"  let k = if side == "l" then 1mm else 0',
-    "param n : int in [1, 5] = 3  param f : bool = true  let m = if f and n > 2 then n else 0",
-    "let x = (0, 0, 0)  let y = trans(x * 1mm)",
-])
+@pytest.mark.parametrize(
+    "body",
+    [
+        "param r : length = 2mm  param a : angle = 30deg  let arc = r * a  require arc > 0mm",
+        "param r : length = 2mm  let area = r * r  let back = sqrt(area)  require back == r",
+        "param v : vec3 length = (1mm, 0, 0)  let n = norm(v)  let u = normalize(v)  "
+        "let d = dot(v, v)  let c = cross(v, v)",
+        "let p = rotz(30deg) * trans(0, 1mm, 0) * rpy(0, 0, pi / 2)  let q = inv(p) * p",
+        "param a : angle = 10deg  let s = sin(a) + cos(0.5) + tan(a)  let b = atan2(1mm, 2mm)",
+        'param side : choice{"l", "r"} = "r"  let k = if side == "l" then 1mm else 0',
+        "param n : int in [1, 5] = 3  param f : bool = true  let m = if f and n > 2 then n else 0",
+        "let x = (0, 0, 0)  let y = trans(x * 1mm)",
+    ],
+)
 def test_valid_bodies(tmp_path: Path, body: str) -> None:
     assert codes(tmp_path, body) == []
 
 
-@pytest.mark.parametrize("body, expected", [
-    ("param r : length = 2mm  let x = r + 30deg", "E203"),
-    ("param r : length = 2mm  let x = r + 3", "E204"),
-    ("param a : angle = 2deg  let x = a > 1", "E204"),
-    ("let x = trans(0, 1, 0)", "E204"),
-    ("let x = sqrt(3mm)", "E228"),
-    ("let x = (1mm, 2mm) + (1mm, 2mm, 3mm)", "E213"),
-    ("let x = if 1 then 2 else 3", "E214"),
-    ("let x = if true then 2mm else (1mm, 2mm)", "E215"),
-    ('param s : choice{"l", "r"} = "l"  let x = s == "m"', "E216"),
-    ('let x = "text"', "E227"),
-    ("let a = b  let b = a", "E119"),
-    ("let x = rotz(1mm)", "E206"),
-    ("let x = atan2(1mm)", "E205"),
-    ("let x = cos", "E106"),
-    ("let x = frobnicate(1)", "E115"),
-    ("param v : vec2 length = (1mm, 1mm)  let x = v.z", "E212"),
-    ("param n : int = 2.5", "E226"),
-    ("shape s = Ring(r_in: 1mm, r_in: 1mm)", "E118"),
-    ("shape s = Ring(radius: 1mm)", "E116"),
-    ("shape s = Ring(1mm)", "E117"),
-])
+@pytest.mark.parametrize(
+    "body, expected",
+    [
+        ("param r : length = 2mm  let x = r + 30deg", "E203"),
+        ("param r : length = 2mm  let x = r + 3", "E204"),
+        ("param a : angle = 2deg  let x = a > 1", "E204"),
+        ("let x = trans(0, 1, 0)", "E204"),
+        ("let x = sqrt(3mm)", "E228"),
+        ("let x = (1mm, 2mm) + (1mm, 2mm, 3mm)", "E213"),
+        ("let x = if 1 then 2 else 3", "E214"),
+        ("let x = if true then 2mm else (1mm, 2mm)", "E215"),
+        ('param s : choice{"l", "r"} = "l"  let x = s == "m"', "E216"),
+        ('let x = "text"', "E227"),
+        ("let a = b  let b = a", "E119"),
+        ("let x = rotz(1mm)", "E206"),
+        ("let x = atan2(1mm)", "E205"),
+        ("let x = cos", "E106"),
+        ("let x = frobnicate(1)", "E115"),
+        ("param v : vec2 length = (1mm, 1mm)  let x = v.z", "E212"),
+        ("param n : int = 2.5", "E226"),
+        ("shape s = Ring(r_in: 1mm, r_in: 1mm)", "E118"),
+        ("shape s = Ring(radius: 1mm)", "E116"),
+        ("shape s = Ring(1mm)", "E117"),
+    ],
+)
 def test_errors(tmp_path: Path, body: str, expected: str) -> None:
     assert expected in codes(tmp_path, body)
 
@@ -67,8 +73,9 @@ def test_values_at_defaults(tmp_path: Path) -> None:
     assert codes(tmp_path, "param r : length in [1mm, 2mm] = 3mm") == ["E209"]
     assert codes(tmp_path, "param r : length in [3mm, 2mm]") == ["E208"]
     assert codes(tmp_path, 'param r : length = 2mm  require r > 3mm "too small"') == ["E210"]
-    assert codes(tmp_path, "param r : length = 2mm  grasp g(t in [r, 0mm]) = trans(t, 0, 0)") \
-        == ["E211"]
+    assert codes(tmp_path, "param r : length = 2mm  grasp g(t in [r, 0mm]) = trans(t, 0, 0)") == [
+        "E211"
+    ]
     assert codes(tmp_path, "param r : length = 0mm  let k = 1 / (r / 1mm)") == ["E225"]
 
 
@@ -83,12 +90,14 @@ def test_part_parameters_are_readable_and_typed(tmp_path: Path) -> None:
 def test_joint_rules(tmp_path: Path) -> None:
     link = "link l { shape s = Cuboid() }\n"
     assert codes(tmp_path, link + "joint j : revolute(base -> l) range [0, 1deg]") == ["E217"]
-    assert codes(tmp_path, link + "joint j : revolute(base -> l) axis (0, 1, 0) range [0, 1mm]") \
-        == ["E229"]
-    assert codes(tmp_path, link + "joint j : continuous(base -> l) axis (0, 0, 1) "
-                 "range [0, 1deg]") == ["E219"]
+    assert codes(
+        tmp_path, link + "joint j : revolute(base -> l) axis (0, 1, 0) range [0, 1mm]"
+    ) == ["E229"]
+    assert codes(
+        tmp_path, link + "joint j : continuous(base -> l) axis (0, 0, 1) range [0, 1deg]"
+    ) == ["E219"]
     assert codes(tmp_path, link + "joint j : hinge(base -> l)") == ["E218"]
-    assert codes(tmp_path, link + "joint j : prismatic(base -> l) axis (0, 0, 0) "
-                 "range [0, 1mm]") == ["E221"]
-    assert codes(tmp_path, link + "joint j : fixed(base -> l)  action a = pull along j") \
-        == ["E219"]
+    assert codes(
+        tmp_path, link + "joint j : prismatic(base -> l) axis (0, 0, 0) range [0, 1mm]"
+    ) == ["E221"]
+    assert codes(tmp_path, link + "joint j : fixed(base -> l)  action a = pull along j") == ["E219"]

@@ -16,10 +16,10 @@ def one_concept(src: str) -> ast.Concept:
 
 def test_param_with_units_range_default_help_and_docs() -> None:
     c = one_concept(
-        '/// A thing.\nconcept A {\n'
-        '    /// leading\n'
+        "/// A thing.\nconcept A {\n"
+        "    /// leading\n"
         '    param r : length in [1mm, 2.5cm] = 1.5mm "help"  /// trailing\n'
-        '}\n'
+        "}\n"
     )
     (p,) = c.members
     assert isinstance(p, ast.Param)
@@ -32,8 +32,10 @@ def test_param_with_units_range_default_help_and_docs() -> None:
 
 
 def test_vector_and_choice_types() -> None:
-    c = one_concept('concept A { param v : vec3 length = (1mm, 2mm, 3mm)\n'
-                    ' param s : choice{"left", "right"} = "left" }')
+    c = one_concept(
+        "concept A { param v : vec3 length = (1mm, 2mm, 3mm)\n"
+        ' param s : choice{"left", "right"} = "left" }'
+    )
     v, s = c.members
     assert isinstance(v, ast.Param) and isinstance(s, ast.Param)
     assert v.type == ast.TypeRef("vec3", "length")
@@ -42,8 +44,10 @@ def test_vector_and_choice_types() -> None:
 
 
 def test_soft_keywords_are_names_outside_their_clause() -> None:
-    c = one_concept("concept A { param width : length = 1mm  param range : scalar = 1\n"
-                    "  param axis : scalar = 2  let along = width * range * axis }")
+    c = one_concept(
+        "concept A { param width : length = 1mm  param range : scalar = 1\n"
+        "  param axis : scalar = 2  let along = width * range * axis }"
+    )
     assert [m.name for m in c.members] == ["width", "range", "axis", "along"]  # type: ignore[union-attr]
 
 
@@ -52,9 +56,17 @@ def test_operator_precedence_and_associativity() -> None:
     x, y = c.members
     assert isinstance(x, ast.Let) and isinstance(y, ast.Let)
     # ((-(a^2)) * b + c / d) - e
-    assert x.value == ast.Binary("-", ast.Binary("+", ast.Binary(
-        "*", ast.Unary("-", ast.Binary("^", ast.Name("a"), ast.Number("2"))), ast.Name("b")),
-        ast.Binary("/", ast.Name("c"), ast.Name("d"))), ast.Name("e"))
+    assert x.value == ast.Binary(
+        "-",
+        ast.Binary(
+            "+",
+            ast.Binary(
+                "*", ast.Unary("-", ast.Binary("^", ast.Name("a"), ast.Number("2"))), ast.Name("b")
+            ),
+            ast.Binary("/", ast.Name("c"), ast.Name("d")),
+        ),
+        ast.Name("e"),
+    )
     assert y.value == ast.Binary("-", ast.Binary("-", ast.Name("a"), ast.Name("b")), ast.Name("c"))
 
 
@@ -103,13 +115,15 @@ def test_spans_exclude_from_equality_but_locate() -> None:
 
 
 def test_several_syntax_errors_in_one_run_keep_the_rest() -> None:
-    src = ("concept A {\n"
-           "    param r : length = 1.5 mm\n"
-           "    param t = 4\n"
-           "    param ok : length = 2mm\n"
-           "    grasp g = rotz(0\n"
-           "    param u : angle = 1deg\n"
-           "}\n")
+    src = (
+        "concept A {\n"
+        "    param r : length = 1.5 mm\n"
+        "    param t = 4\n"
+        "    param ok : length = 2mm\n"
+        "    grasp g = rotz(0\n"
+        "    param u : angle = 1deg\n"
+        "}\n"
+    )
     r = parse(src, "t.eac")
     assert [d.code for d in r.diagnostics] == ["E002", "E002", "E002"]
     assert [d.span.line for d in r.diagnostics] == [2, 3, 5]

@@ -17,8 +17,11 @@ def lib() -> eac.Library:
 
 def rot(axis: str, a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
-    m = {"x": [[1, 0, 0], [0, c, -s], [0, s, c]], "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
-         "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]]}[axis]
+    m = {
+        "x": [[1, 0, 0], [0, c, -s], [0, s, c]],
+        "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
+        "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]],
+    }[axis]
     out = np.eye(4)
     out[:3, :3] = m
     return out
@@ -41,8 +44,13 @@ def random_pose(rng: np.random.Generator) -> np.ndarray:
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)
-@given(radian=st.floats(np.radians(20), np.radians(180)), r_in=st.floats(0.005, 0.15),
-       gap=st.floats(0.002, 0.05), u=st.floats(-1, 1), seed=st.integers(0, 2**16))
+@given(
+    radian=st.floats(np.radians(20), np.radians(180)),
+    r_in=st.floats(0.005, 0.15),
+    gap=st.floats(0.002, 0.05),
+    u=st.floats(-1, 1),
+    seed=st.integers(0, 2**16),
+)
 def test_curve_handle_grasp_matches_the_paper(lib, radian, r_in, gap, u, seed) -> None:  # type: ignore[no-untyped-def]
     r_out = r_in + gap
     pose = random_pose(np.random.default_rng(seed))
@@ -70,8 +78,9 @@ def test_door_force_is_the_velocity_of_the_grasp_point(lib) -> None:  # type: ig
         grasp = door.grasp("handle.pull", theta=0.2)
         path = door.follow("open", grasp, to=0.4 + 1e-6, steps=2)
         velocity = (path[1, :3, 3] - path[0, :3, 3]) / 1e-6
-        np.testing.assert_allclose(door.force("open", grasp), velocity / np.linalg.norm(velocity),
-                                   atol=1e-5)
+        np.testing.assert_allclose(
+            door.force("open", grasp), velocity / np.linalg.norm(velocity), atol=1e-5
+        )
         np.testing.assert_allclose(door.force("close", grasp), -door.force("open", grasp))
 
 
@@ -100,18 +109,22 @@ def test_handle_part_matches_the_handle_concept(lib) -> None:  # type: ignore[no
     place = np.eye(4)
     place[:3, 3] = [p["handle_at"][0], p["handle_at"][1], z]
     place = place @ rot("x", -np.pi / 2)
-    np.testing.assert_allclose(door.grasp("handle.pull", theta=0.3),
-                               place @ handle.grasp("pull", theta=0.3), atol=1e-12)
+    np.testing.assert_allclose(
+        door.grasp("handle.pull", theta=0.3), place @ handle.grasp("pull", theta=0.3), atol=1e-12
+    )
 
 
-@pytest.mark.parametrize("kwargs, error, text", [
-    ({"radian": 5.0}, eac.ParameterError, "outside its range"),
-    ({"radian": float("nan")}, eac.ParameterError, "finite"),
-    ({"r_in": 0.047}, eac.RequirementError, "the bar needs material"),
-    ({"raidan": 1.0}, eac.UnknownNameError, "did you mean 'radian'"),
-    ({"r_in": (0.01, 0.02)}, eac.ParameterError, "takes 1 value"),
-    ({"pose": np.zeros((4, 4))}, eac.ParameterError, "rigid transform"),
-])
+@pytest.mark.parametrize(
+    "kwargs, error, text",
+    [
+        ({"radian": 5.0}, eac.ParameterError, "outside its range"),
+        ({"radian": float("nan")}, eac.ParameterError, "finite"),
+        ({"r_in": 0.047}, eac.RequirementError, "the bar needs material"),
+        ({"raidan": 1.0}, eac.UnknownNameError, "did you mean 'radian'"),
+        ({"r_in": (0.01, 0.02)}, eac.ParameterError, "takes 1 value"),
+        ({"pose": np.zeros((4, 4))}, eac.ParameterError, "rigid transform"),
+    ],
+)
 def test_bad_input_gives_typed_errors(lib, kwargs, error, text) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(error, match=text):
         lib["CurveHandle"].instantiate(**kwargs)
