@@ -282,6 +282,8 @@ class _ConceptChecker:
             prim = self._primitive(v.func)
             assert prim is not None
             self._named_args(v.args, prim, v.func_span, "primitive")
+        elif isinstance(v, ast.Call) and (v.func in self.dropped or "*" in self.dropped):
+            self.incomplete = True  # its import failed and was reported
         else:
             func = v.func if isinstance(v, ast.Call) else None
             prims = [

@@ -70,6 +70,8 @@ class Program:
     visible: dict[str, dict[str, str]] = field(default_factory=dict)  # file -> name -> file
     imports: dict[str, list[str]] = field(default_factory=dict)
     roots: list[str] = field(default_factory=list)
+    # Names a failed `use` should have brought in ("*" for a whole module): no follow-on errors.
+    unresolved: dict[str, set[str]] = field(default_factory=dict)
 
     def concept(self, name: str) -> ast.Concept:
         return self.concepts[name].decl
@@ -78,7 +80,8 @@ class Program:
         return {p: f.text for p, f in self.files.items()}
 
     def dropped(self, file: str) -> frozenset[str]:
-        return self.files[file].dropped
+        """Names later passes should not complain about: lost to syntax or import errors."""
+        return self.files[file].dropped | self.unresolved.get(file, set())
 
 
 def stdlib_dir() -> Path:
@@ -110,6 +113,7 @@ def resolve(
             target = _find_module(use.module, path.parent, search)
             if target is None:
                 diags.append(_missing_module(use, path.parent, search))
+                prog.unresolved.setdefault(key, set()).update(use.names or ("*",))
                 continue
             prog.imports[key].append(str(target))
             queue.append(target)
@@ -248,6 +252,7 @@ def _visibility(prog: Program) -> list[Diagnostic]:
                     if name in exported:
                         seen[name] = target
                     elif use.names is not None:
+                        prog.unresolved.setdefault(path, set()).add(name)
                         span = use.name_spans[i] if i < len(use.name_spans) else use.span
                         diags.append(
                             error(
@@ -331,7 +336,8 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     joints = {m.name for m in c.members if isinstance(m, ast.Joint)}
     grasps = {m.name for m in flat_members(c) if isinstance(m, ast.Grasp)}
     for m in flat_members(c):
-        if isinstance(m, ast.Part) and m.concept not in visible and m.concept not in dropped:
+        quiet = m.concept in dropped or "*" in dropped if isinstance(m, ast.Part) else True
+        if isinstance(m, ast.Part) and m.concept not in visible and not quiet:
             hint = did_you_mean(m.concept, visible) or (
                 f"import it with `use ...{{{m.concept}}}`" if m.concept in prog.concepts else None
             )
