@@ -36,6 +36,7 @@ def _parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="report every problem in .eac files")
     c.add_argument("paths", nargs="+", help=".eac files or directories")
     c.add_argument("--json", action="store_true", help="machine-readable diagnostics")
+    _search_path(c)
     c.set_defaults(run=cmd_check)
 
     b = sub.add_parser("build", help="compile .eac files into a cached library artifact")
@@ -44,6 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--cache-dir", type=Path, help="cache directory (default: user cache)")
     b.add_argument("--no-native", action="store_true", help="skip compiling C kernels")
     b.add_argument("--json", action="store_true")
+    _search_path(b)
     b.set_defaults(run=cmd_build)
 
     f = sub.add_parser("fmt", help="format .eac files in place (or check them)")
@@ -54,14 +56,27 @@ def _parser() -> argparse.ArgumentParser:
     ls = sub.add_parser("list", help="list the concepts of a library")
     ls.add_argument("paths", nargs="*", help="default: the standard library")
     ls.add_argument("--json", action="store_true")
+    _search_path(ls)
     ls.set_defaults(run=cmd_list)
 
     e = sub.add_parser("explain", help="parameters, grasps, actions and formulas of a concept")
     e.add_argument("concept")
     e.add_argument("paths", nargs="*", help="default: the standard library")
     e.add_argument("--json", action="store_true")
+    _search_path(e)
     e.set_defaults(run=cmd_explain)
     return p
+
+
+def _search_path(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "-I",
+        "--search-path",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="look for imported modules here too (also: GRACE_EAC_PATH)",
+    )
 
 
 # ---- check / build ------------------------------------------------------------------------------
@@ -82,7 +97,7 @@ def _report(diags: list[Diagnostic], sources: dict[str, str], as_json: bool) -> 
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    prog, checked, diags = front_end(args.paths)
+    prog, checked, diags = front_end(args.paths, args.search_path)
     if args.json:
         print_json(
             {
@@ -111,10 +126,14 @@ def cmd_build(args: argparse.Namespace) -> int:
                 bar.update(task, total=n, completed=i, description=f"compiling {Path(file).name}")
 
             result = build(
-                args.paths, args.cache_dir, use_native=not args.no_native, progress=progress
+                args.paths,
+                args.cache_dir,
+                args.search_path,
+                use_native=not args.no_native,
+                progress=progress,
             )
     else:
-        result = build(args.paths, args.cache_dir, use_native=not args.no_native)
+        result = build(args.paths, args.cache_dir, args.search_path, use_native=not args.no_native)
     diags = list(result.diagnostics)
     if result.ok and args.output is not None:
         diags += export_library(result, args.output)
@@ -187,19 +206,19 @@ def _eac_files(paths: Sequence[str]) -> list[str]:
 # ---- list / explain -----------------------------------------------------------------------------
 
 
-def _library(paths: Sequence[str]) -> Any:
+def _library(paths: Sequence[str], search_path: Sequence[str]) -> Any:
     from grace_dsl.runtime.errors import CompileError
     from grace_dsl.runtime.library import compile_paths
 
     try:
-        return compile_paths(list(paths) or [stdlib_dir()])
+        return compile_paths(list(paths) or [stdlib_dir()], search_path=search_path)
     except CompileError as exc:
         sys.stderr.write(str(exc) + "\n")
         return None
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    lib = _library(args.paths)
+    lib = _library(args.paths, args.search_path)
     if lib is None:
         return 1
     concepts = [lib[n] for n in lib]
@@ -241,7 +260,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_explain(args: argparse.Namespace) -> int:
-    lib = _library(args.paths)
+    lib = _library(args.paths, args.search_path)
     if lib is None:
         return 1
     if args.concept not in lib:

@@ -8,6 +8,7 @@ which knows their types.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -89,13 +90,19 @@ def stdlib_dir() -> Path:
     return Path(__file__).resolve().parent.parent / "concepts"
 
 
+def env_search_path() -> list[Path]:
+    """Directories from ``GRACE_EAC_PATH`` (separated like PATH), searched before the stdlib."""
+    value = os.environ.get("GRACE_EAC_PATH", "")
+    return [Path(p) for p in value.split(os.pathsep) if p]
+
+
 def resolve(
     paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()
 ) -> tuple[Program, list[Diagnostic]]:
     """Load ``paths`` (files or directories of .eac files) and everything they import."""
     diags: list[Diagnostic] = []
     prog = Program()
-    search = [Path(p) for p in search_path] + [stdlib_dir()]
+    search = [Path(p) for p in search_path] + env_search_path() + [stdlib_dir()]
     roots = _root_files(paths, diags)
     prog.roots = [str(p) for p in roots]
     queue = list(roots)

@@ -21,7 +21,7 @@ from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, has_errors
 
 # The formatter must lex exactly as the parser does (same grammar, same doc-comment rule).
-from grace_dsl.lang.parser import _DocPostLex, _grammar, parse
+from grace_dsl.lang.parser import DocPostLex, grammar, parse
 
 WIDTH = 100
 INDENT = 4
@@ -403,10 +403,10 @@ class _CommentSink:
 def _position_parser() -> tuple[Lark, _CommentSink]:
     sink = _CommentSink()
     lark = Lark(
-        _grammar(),
+        grammar(),
         parser="lalr",
         lexer="contextual",
-        postlex=_DocPostLex(),
+        postlex=DocPostLex(),
         propagate_positions=True,
         keep_all_tokens=True,
         maybe_placeholders=False,

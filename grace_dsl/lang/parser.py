@@ -83,7 +83,7 @@ def parse(source: str, path: str = "<string>") -> ParseResult:
 # ---- lark setup ---------------------------------------------------------------------------------
 
 
-class _DocPostLex(PostLex):
+class DocPostLex(PostLex):
     """Turns a ``///`` comment that ends a line of code into a trailing doc (TDOC)."""
 
     always_accept = ("DOC",)
@@ -98,7 +98,7 @@ class _DocPostLex(PostLex):
 
 
 @lru_cache(maxsize=1)
-def _grammar() -> str:
+def grammar() -> str:
     return resources.files("grace_dsl.lang").joinpath("eac.lark").read_text(encoding="utf-8")
 
 
@@ -116,10 +116,10 @@ class _BadNumber(Exception):
 def _parser() -> tuple[Lark, _Builder]:
     builder = _Builder("<string>")
     lark = Lark(
-        _grammar(),
+        grammar(),
         parser="lalr",
         lexer="contextual",
-        postlex=_DocPostLex(),
+        postlex=DocPostLex(),
         transformer=builder,
         maybe_placeholders=True,
     )

@@ -166,3 +166,12 @@ def test_deep_nesting_is_a_diagnostic_not_a_crash() -> None:
 def test_number_too_large() -> None:
     r = parse("concept A { let x = 1e400mm }", "t.eac")
     assert [d.code for d in r.diagnostics] == ["E005"]
+
+
+def test_the_standard_library_is_formatted() -> None:
+    """`eacc fmt --check` passes on the shipped concepts (they are the style reference)."""
+    from grace_dsl.compiler.resolve import stdlib_dir
+    from grace_dsl.lang.formatter import check_formatted
+
+    for path in sorted(stdlib_dir().glob("*.eac")):
+        assert check_formatted(path.read_text(), str(path)), path.name
