@@ -505,11 +505,11 @@ class _Builder(Transformer):
     def string(self, c: list[Token]) -> ast.String:
         return ast.String(_string_value(c[0]), _tok_span(self.path, c[0]))
 
-    def true(self, _: list[Any]) -> ast.Bool:
-        return ast.Bool(True)
+    def true(self, c: list[Token]) -> ast.Bool:
+        return ast.Bool(True, _tok_span(self.path, c[0]))
 
-    def false(self, _: list[Any]) -> ast.Bool:
-        return ast.Bool(False)
+    def false(self, c: list[Token]) -> ast.Bool:
+        return ast.Bool(False, _tok_span(self.path, c[0]))
 
     def name(self, c: list[Token]) -> ast.Name:
         return ast.Name(c[0].value, _tok_span(self.path, c[0]))
