@@ -13,6 +13,7 @@ CODES: dict[str, str] = {
     "E004": "expression nested too deeply",
     "E005": "number out of range",
     "E006": "file cannot be read",
+    "E007": "clause given twice",
     # names and imports
     "E101": "module not found",
     "E102": "import cycle",

@@ -60,7 +60,7 @@ def parse(source: str, path: str = "<string>") -> ParseResult:
     text = source
     for _ in range(MAX_RECOVERIES):
         try:
-            module = _parse_once(text, path)
+            module, notes = _parse_once(text, path)
         except UnexpectedInput as exc:
             diags.append(_syntax_diagnostic(exc, text, path))
             blanked = _blank_declaration(text, exc)
@@ -76,7 +76,7 @@ def parse(source: str, path: str = "<string>") -> ParseResult:
         except _BadNumber as exc:
             diags.append(exc.diagnostic)
             return ParseResult(None, tuple(diags), frozenset(dropped))
-        return ParseResult(module, tuple(diags), frozenset(dropped))
+        return ParseResult(module, tuple(diags + notes), frozenset(dropped))
     return ParseResult(None, tuple(diags), frozenset(dropped))
 
 
@@ -129,17 +129,18 @@ def _parser() -> tuple[Lark, _Builder]:
 _PARSE_LOCK = threading.Lock()
 
 
-def _parse_once(text: str, path: str) -> ast.Module:
+def _parse_once(text: str, path: str) -> tuple[ast.Module, list[Diagnostic]]:
     lark, builder = _parser()
     with _PARSE_LOCK:  # the inline builder holds per-parse state
-        builder.path, builder.depth = path, {}
+        builder.path, builder.depth, builder.notes = path, {}, []
         try:
             items: list[Any] = lark.parse(text)  # type: ignore[assignment]  # inline builder
+            notes = builder.notes
         finally:
-            builder.depth = {}
+            builder.depth, builder.notes = {}, []
     uses = tuple(i for i in items if isinstance(i, ast.Use))
     concepts = tuple(i for i in items if isinstance(i, ast.Concept))
-    return ast.Module(path, uses, concepts)
+    return ast.Module(path, uses, concepts), notes
 
 
 # ---- tree building ------------------------------------------------------------------------------
@@ -175,6 +176,7 @@ class _Builder(Transformer):
         super().__init__(visit_tokens=False)
         self.path = path
         self.depth: dict[int, int] = {}
+        self.notes: list[Diagnostic] = []  # problems that do not stop the parse
 
     # -- helpers
     def _span(self, first: Any, last: Any) -> ast.Span:
@@ -349,7 +351,19 @@ class _Builder(Transformer):
     def joint_decl(self, c: list[Any]) -> ast.Joint:
         docs, name, kind, parent, child, *clauses = c
         trailing = clauses.pop()
-        found = {cl.tag: cl for cl in clauses}
+        found: dict[str, _Clause] = {}
+        for cl in clauses:
+            if cl.tag in found:
+                word = {"origin": "at"}.get(cl.tag, cl.tag)
+                self.notes.append(
+                    error(
+                        "E007",
+                        f"joint `{name.value}` gives `{word}` twice",
+                        cl.span,
+                        "keep one; the declaration would otherwise depend on the order",
+                    )
+                )
+            found[cl.tag] = cl
         return ast.Joint(
             name.value,
             kind.value,
@@ -368,17 +382,17 @@ class _Builder(Transformer):
         )
 
     def joint_axis(self, c: list[Any]) -> _Clause:
-        return _Clause("axis", c[0])
+        return _Clause("axis", c[0], self._start(c[0]))
 
     def joint_origin(self, c: list[Any]) -> _Clause:
-        return _Clause("origin", c[0])
+        return _Clause("origin", c[0], self._start(c[0]))
 
     def joint_range(self, c: list[Any]) -> _Clause:
         lo, hi = c
-        return _Clause("range", ast.Bounds(lo, hi, self._span(lo, hi)))
+        return _Clause("range", ast.Bounds(lo, hi, self._span(lo, hi)), self._span(lo, hi))
 
     def joint_opens(self, c: list[Token]) -> _Clause:
-        return _Clause("opens", 1 if c[0].value == "+" else -1)
+        return _Clause("opens", 1 if c[0].value == "+" else -1, _tok_span(self.path, c[0]))
 
     def grasp_decl(self, c: list[Any]) -> ast.Grasp:
         docs, name, *rest = c
@@ -609,6 +623,13 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
     span = _tok_span(path, tok)
     found = f"`{tok.value}`" if tok.type not in ("DOC", "TDOC") else "a doc comment"
     message = f"unexpected {found}; expected {_expected_list(set(exc.expected))}"
+    if tok.type == "RBRACE" and _doc_right_before(text, tok):
+        return error(
+            "E002",
+            "a `///` doc comment here documents nothing",
+            span,
+            "put it right before the declaration it describes, or use `//`",
+        )
     prev = _unfinished_before(exc, text)
     if prev is not None:
         span = ast.Span(path, prev[0], prev[1], prev[0], prev[1] + 1)
@@ -660,6 +681,13 @@ def _error_line(exc: UnexpectedInput, text: str) -> int:
     """The line of the broken declaration: the one before, when the error is at a fresh start."""
     prev = _unfinished_before(exc, text)
     return prev[0] if prev is not None else exc.line
+
+
+def _doc_right_before(text: str, tok: Token) -> bool:
+    """Whether the last non-blank line before ``tok`` is a ``///`` doc comment."""
+    lines = text.split("\n")[: (tok.line or 1) - 1]
+    code = [line.strip() for line in lines if line.strip()]
+    return bool(code) and code[-1].startswith("///")
 
 
 def _unfinished_before(exc: UnexpectedInput, text: str) -> tuple[int, int] | None:

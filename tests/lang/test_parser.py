@@ -175,3 +175,17 @@ def test_the_standard_library_is_formatted() -> None:
 
     for path in sorted(stdlib_dir().glob("*.eac")):
         assert check_formatted(path.read_text(), str(path)), path.name
+
+
+def test_a_joint_clause_given_twice() -> None:
+    src = (
+        "concept A { link l {}\n joint j : revolute(base -> l) axis (0, 1, 0) range [0, 1deg]"
+        " axis (1, 0, 0) }"
+    )
+    r = parse(src, "t.eac")
+    assert [(d.code, d.span.line, d.span.col) for d in r.diagnostics] == [("E007", 2, 66)]
+
+
+def test_a_doc_comment_that_documents_nothing() -> None:
+    (d,) = parse("concept A { let x = 1\n/// orphan\n}", "t.eac").diagnostics
+    assert d.code == "E002" and "documents nothing" in d.message
