@@ -183,7 +183,7 @@ def test_a_joint_clause_given_twice() -> None:
         " axis (1, 0, 0) }"
     )
     r = parse(src, "t.eac")
-    assert [(d.code, d.span.line, d.span.col) for d in r.diagnostics] == [("E007", 2, 66)]
+    assert [(d.code, d.span.line, d.span.col) for d in r.diagnostics] == [("E007", 2, 68)]
 
 
 def test_a_doc_comment_that_documents_nothing() -> None:
