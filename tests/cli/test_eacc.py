@@ -72,7 +72,9 @@ def test_list_and_explain_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["explain", "CurveHandle", "--json"]) == 0
     entry = json.loads(capsys.readouterr().out)
     (grasp,) = entry["grasps"]
-    assert grasp["source"] == "rotz(theta) * trans(0, -r_out, 0) * rpy(90deg, 0, 90deg)"
+    assert grasp["source"] == (
+        "rotz(theta) * trans(0, -r_out, 0) * rpy(90deg, 0, 90deg) * roty(90deg)"
+    )
     assert "sin(theta)" in grasp["formula"]["text"]
 
 

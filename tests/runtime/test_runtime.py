@@ -28,11 +28,12 @@ def rot(axis: str, a: float) -> np.ndarray:
 
 
 def paper_curve_handle_grasp(theta: float, r_out: float) -> np.ndarray:
-    """The paper's G = R(0, 0, theta) T(0, -R_o, 0) R(pi/2, 0, pi/2), written independently."""
+    """The paper's G = R(0, 0, theta) T(0, -R_o, 0) R(pi/2, 0, pi/2) G*, written independently;
+    G* = Ry(pi/2) turns the paper's gripper (approach along x) into ours (approach along z)."""
     t = np.eye(4)
     t[1, 3] = -r_out
     r_pi = rot("z", np.pi / 2) @ rot("y", 0.0) @ rot("x", np.pi / 2)
-    return rot("z", theta) @ t @ r_pi
+    return rot("z", theta) @ t @ r_pi @ rot("y", np.pi / 2)
 
 
 def random_pose(rng: np.random.Generator) -> np.ndarray:
@@ -60,6 +61,16 @@ def test_curve_handle_grasp_matches_the_paper(lib, radian, r_in, gap, u, seed) -
     theta = u * radian / 2
     want = pose @ paper_curve_handle_grasp(theta, r_out)
     np.testing.assert_allclose(inst.grasp("pull", theta=theta), want, atol=1e-12)
+
+
+def test_curve_handle_grasp_approaches_radially(lib) -> None:  # type: ignore[no-untyped-def]
+    """Our gripper convention: +z approaches the ring's centre, +y closes along the ring axis."""
+    g = lib["CurveHandle"].instantiate().grasp("pull", theta=0.3)
+    inward = -g[:3, 3] / np.linalg.norm(g[:3, 3])
+    np.testing.assert_allclose(g[:3, 2], inward, atol=1e-12)
+    np.testing.assert_allclose(np.abs(g[:3, 1]), [0, 0, 1], atol=1e-12)
+    door = lib["SunkenDoor"].instantiate()
+    assert door.grasp("handle.pull")[2, 2] < -0.99  # into the door's front
 
 
 def test_grasps_spread_over_the_range(lib) -> None:  # type: ignore[no-untyped-def]
