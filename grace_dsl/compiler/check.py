@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -78,7 +79,7 @@ def check(prog: Program) -> tuple[Checked, list[Diagnostic]]:
 
 
 def _parts_first(prog: Program) -> list[str]:
-    """Concept names ordered so that every part's concept comes before its host."""
+    """Concept names ordered so that every part's concept and primitive comes before its host."""
     order: list[str] = []
     seen: set[str] = set()
 
@@ -89,6 +90,8 @@ def _parts_first(prog: Program) -> list[str]:
         for m in flat_members(prog.concept(name)):
             if isinstance(m, ast.Part):
                 visit(m.concept)
+            elif isinstance(m, ast.Shape) and isinstance(m.value, ast.Call):
+                visit(m.value.func)  # a primitive
         order.append(name)
 
     for name in prog.concepts:
@@ -211,12 +214,14 @@ class _ConceptChecker:
         if p.default is not None:
             self._constant(p.default, "a parameter's default")
             self.coerce(self.expr(p.default), t, p.default.span)
-        elif p.bounds is None and t.kind not in ("bool", "choice"):
+        elif p.bounds is None and t.kind != "choice":
             self.err(
                 "E222",
                 f"parameter `{p.name}` has neither a default nor a range",
                 p.name_span,
-                "add `= value` or `in [lo, hi]` (the default is then the middle)",
+                "add `= true` or `= false`"
+                if t.kind == "bool"
+                else "add `= value` or `in [lo, hi]` (the default is then the middle)",
             )
         elif t.kind == "choice" and p.default is None:
             self.err(
@@ -292,7 +297,11 @@ class _ConceptChecker:
                 if self.prog.concepts[n].decl.kind == "primitive"
             ]
             hint = did_you_mean(func, prims) if func else None
-            if func and func in self.prog.concepts:
+            entry = self.prog.concepts.get(func) if func else None
+            if entry is not None and entry.decl.kind == "primitive":
+                module = Path(entry.file).stem
+                hint = f"import it: `use {module}.{{{func}}}`"
+            elif entry is not None:
                 hint = f"`{func}` is a concept: place it with `part {s.name} = {func}(...)`"
             self.err(
                 "E223",
@@ -314,6 +323,14 @@ class _ConceptChecker:
 
     def _part(self, p: ast.Part) -> None:
         entry = self.prog.concepts.get(p.concept)
+        if entry is not None and entry.decl.kind == "primitive":
+            self.err(
+                "E114",
+                f"`{p.concept}` is a primitive: place it with `shape`, not `part`",
+                p.concept_span,
+                f"shape {p.name} = {p.concept}(...)",
+            )
+            return
         if entry is not None and p.concept in self.prog.visible.get(self.file, {}):
             self._named_args(p.args, entry.decl, p.concept_span, "concept")
         if p.at is not None:
@@ -363,8 +380,13 @@ class _ConceptChecker:
         moving = j.kind != "fixed"
         if moving and j.axis is None:
             self.err("E217", f"a {j.kind} joint needs an `axis (x, y, z)`", j.span)
-        if not moving and (j.axis is not None or j.limits is not None):
-            self.err("E219", "a fixed joint takes no axis or range", j.span)
+        if not moving and (j.axis, j.limits, j.origin, j.opens) != (None, None, None, None):
+            self.err(
+                "E219",
+                "a fixed joint takes no axis, at, range or opens",
+                j.span,
+                "a fixed joint glues its child to its parent where both are declared",
+            )
         if j.kind == "continuous" and j.limits is not None:
             self.err(
                 "E219",
@@ -554,7 +576,7 @@ class _ConceptChecker:
         if isinstance(e, ast.IfExpr):
             self._expect_bool(self.expr(e.cond), e.cond.span)
             a, b = self.expr(e.then), self.expr(e.orelse)
-            t = self._unify(a, b, e.span, "the branches of `if`")
+            t = self._unify(a, b, e.span, "`if ... then ... else`")
             if t is ERR and a.type.kind != b.type.kind and ERR not in (a.type, b.type):
                 self.diags[-1] = error(
                     "E215",
@@ -752,7 +774,7 @@ class _ConceptChecker:
                     e.span,
                 )
                 return TE(ERR)
-            return TE(tb)
+            return TE(T.vec(3, LENGTH) if ta.kind == "pose" else tb)
         if ta.kind in ("rot", "pose") and tb.kind in ("rot", "pose"):
             return TE(T.ROT if ta.kind == tb.kind == "rot" else T.POSE)
         hint = "use dot(a, b) or cross(a, b)" if ta.kind == tb.kind == "vec" else None
@@ -781,28 +803,72 @@ class _ConceptChecker:
             self._check_param_values(out)
             if self.diags:
                 return
-            ev = Evaluator(NUMPY, self.types, dict(out.defaults), self._lazy_let(out))
-            ev.env.update(self._part_defaults(ev))
+            ev = self._defaults_evaluator(out)
+            if ev is None:
+                return
             for m in flat_members(self.decl):
                 self._check_member_values(m, ev)
 
-    def _part_defaults(self, ev: Evaluator) -> dict[str, Any]:
-        """``part.param`` at the defaults: the part's argument, or its concept's default."""
-        values: dict[str, Any] = {}
-        for part in (m for m in flat_members(self.decl) if isinstance(m, ast.Part)):
-            sub = self.done.get(part.concept)
-            if sub is None or not sub.ok:
-                continue
-            values.update({f"{part.name}.{k}": v for k, v in sub.defaults.items()})
-            values.update({f"{part.name}.{a.name}": ev(a.value) for a in part.args if a.name})
-        return values
+    def _defaults_evaluator(self, out: CheckedConcept) -> Evaluator | None:
+        """The concept evaluated at its defaults; None (after a diagnostic) on a cycle."""
+        ev = evaluator_at(self.decl, out.defaults, self.done, self.types)
+        if ev is None:
+            return None
+        parts = [m for m in flat_members(self.decl) if isinstance(m, ast.Part)]
+        for part in parts:
+            for arg in (a for a in part.args if a.name):
+                try:
+                    ev.lookup(f"{part.name}.{arg.name}")
+                except _Cycle as cycle:
+                    self.err(
+                        "E119",
+                        f"`{part.name}.{arg.name}` is defined in terms of itself: "
+                        + " -> ".join(cycle.names),
+                        arg.span,
+                    )
+                    return None
+        return ev
 
-    def _lazy_let(self, out: CheckedConcept) -> Any:
-        def value(name: str) -> Any:
-            ev = Evaluator(NUMPY, self.types, out.defaults, value)
-            return ev(self.lets[name].value)
-
-        return value
+    def _check_arguments(self, m: ast.Part | ast.Shape, ev: Evaluator) -> None:
+        """A part's or primitive's arguments at the defaults: inside its ranges, and meeting
+        its requirements (otherwise every instance would fail at run time)."""
+        call = m.value if isinstance(m, ast.Shape) else None
+        if isinstance(m, ast.Part):
+            target, args, prefix = m.concept, m.args, f"{m.name}."
+        elif isinstance(call, ast.Call) and call.func not in SET_OPS:
+            target, args, prefix = call.func, call.args, None
+        else:
+            return
+        sub = self.done.get(target)
+        if sub is None or not sub.ok:
+            return
+        values = dict(sub.defaults)
+        for a in (a for a in args if a.name in sub.param_types):
+            assert a.name is not None
+            value = ev.lookup(prefix + a.name) if prefix else ev(a.value)
+            values[a.name] = value
+            if a.name in sub.bounds and not _within(value, *sub.bounds[a.name]):
+                lo, hi = sub.bounds[a.name]
+                dim = sub.param_types[a.name].dim
+                self.err(
+                    "E209",
+                    f"`{a.name}` = {_fmt_any(value, dim)} at the defaults lies "
+                    f"outside the range of {target}",
+                    a.value.span,
+                    f"{target}.{a.name} is in [{_fmt_any(lo, dim)}, {_fmt_any(hi, dim)}]",
+                )
+        sub_ev = evaluator_at(sub.decl, values, self.done, self.types)
+        if sub_ev is None:
+            return
+        for r in (x for x in sub.decl.members if isinstance(x, ast.Require)):
+            if not bool(sub_ev(r.cond)):
+                self.err(
+                    "E210",
+                    f"with these arguments, {target} fails its requirement"
+                    + (f" ({r.message})" if r.message else ""),
+                    getattr(m, "name_span", m.span),
+                    f"at {r.cond.span.file}:{r.cond.span.line}",
+                )
 
     def _check_param_values(self, out: CheckedConcept) -> None:
         ev = Evaluator(NUMPY, self.types, {})
@@ -847,6 +913,9 @@ class _ConceptChecker:
             out.defaults[name] = value
 
     def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
+        name = getattr(m, "name", None)
+        if name is not None and self.members.get(name) is not m:
+            return  # a duplicate, already reported (E105)
         if isinstance(m, ast.Require):
             if not bool(ev(m.cond)):
                 used = sorted({n.id for n in names_in(m.cond)} & set(ev.env) - {"pi"})
@@ -860,12 +929,41 @@ class _ConceptChecker:
                 )
         elif isinstance(m, ast.Let):
             self._finite(ev(m.value), m.value.span, f"`{m.name}`")
-        elif isinstance(m, ast.Joint) and m.axis is not None:
-            axis = np.asarray(ev(m.axis), dtype=float)
-            if not np.any(axis):
-                self.err("E221", f"the axis of joint `{m.name}` is the zero vector", m.axis.span)
+        elif isinstance(m, ast.Joint):
+            self._check_joint_values(m, ev)
+        elif isinstance(m, ast.Action) and m.direction is not None:
+            if not np.any(np.asarray(ev(m.direction), dtype=float)):
+                self.err(
+                    "E221",
+                    f"the direction of action `{m.name}` is the zero vector",
+                    m.direction.span,
+                )
         elif isinstance(m, ast.Grasp):
             self._check_grasp_values(m, ev)
+        elif isinstance(m, (ast.Part, ast.Shape)):
+            self._check_arguments(m, ev)
+
+    def _check_joint_values(self, j: ast.Joint, ev: Evaluator) -> None:
+        if j.axis is not None and not np.any(np.asarray(ev(j.axis), dtype=float)):
+            self.err("E221", f"the axis of joint `{j.name}` is the zero vector", j.axis.span)
+        if j.limits is None or j.kind not in ("revolute", "prismatic"):
+            return
+        lo, hi = float(ev(j.limits.lo)), float(ev(j.limits.hi))
+        dim = ANGLE if j.kind == "revolute" else LENGTH
+        shown = f"[{_fmt(lo, dim)}, {_fmt(hi, dim)}]"
+        if lo > hi:
+            self.err(
+                "E208",
+                f"the range of joint `{j.name}` is empty at the defaults ({shown})",
+                j.limits.span,
+            )
+        elif not lo <= 0 <= hi:
+            self.err(
+                "E209",
+                f"the range of joint `{j.name}` ({shown}) leaves out 0, its closed state",
+                j.limits.span,
+                "q = 0 is closed and positive q opens: e.g. `range [0, 90deg]`",
+            )
 
     def _check_grasp_values(self, g: ast.Grasp, ev: Evaluator) -> None:
         free = {}
@@ -881,7 +979,15 @@ class _ConceptChecker:
                 )
                 return
             free[fp.name] = ev(fp.default) if fp.default is not None else (lo + hi) / 2
-        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy)
+            if fp.default is not None and not _within(free[fp.name], lo, hi):
+                dim = self.free_types[g.name][fp.name].dim
+                self.err(
+                    "E209",
+                    f"the default of `{fp.name}` lies outside its range at the defaults",
+                    fp.default.span,
+                    f"the range is [{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}]",
+                )
+        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy, ev.parts)
         self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
         if g.width is not None:
             self._finite(sub(g.width), g.width.span, f"the width of grasp `{g.name}`")
@@ -901,6 +1007,55 @@ class _ConceptChecker:
     def _dim(self, name: str) -> Dim:
         t = self.param_types.get(name) or self.let_types.get(name) or T.num()
         return t.dim
+
+
+def evaluator_at(
+    decl: ast.Concept,
+    values: dict[str, Any],
+    done: dict[str, CheckedConcept],
+    types: dict[int, Type],
+) -> Evaluator | None:
+    """A NumPy evaluator of ``decl`` with parameter ``values``: lets and part arguments are
+    computed on demand (raising ``_Cycle`` on a loop), a part's unbound parameters take their
+    concept's defaults.  None when a part's concept did not check."""
+    lets = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Let)}
+    parts = [m for m in flat_members(decl) if isinstance(m, ast.Part)]
+    args = {f"{p.name}.{a.name}": a for p in parts for a in p.args if a.name}
+    env = dict(values)
+    for part in parts:
+        sub = done.get(part.concept)
+        if sub is None or not sub.ok:
+            return None
+        env.update(
+            {
+                f"{part.name}.{k}": v
+                for k, v in sub.defaults.items()
+                if f"{part.name}.{k}" not in args
+            }
+        )
+    visiting: list[str] = []
+
+    def value(name: str) -> Any:
+        if name in visiting:
+            raise _Cycle([*visiting[visiting.index(name) :], name])
+        visiting.append(name)
+        try:
+            return ev(lets[name].value if name in lets else args[name].value)
+        finally:
+            visiting.pop()
+
+    ev = Evaluator(NUMPY, types, env, value, frozenset(p.name for p in parts))
+    return ev
+
+
+def _within(value: Any, lo: Any, hi: Any) -> bool:
+    v = np.asarray(value, dtype=float)
+    return bool(np.all(v >= np.asarray(lo) - 1e-12) and np.all(v <= np.asarray(hi) + 1e-12))
+
+
+class _Cycle(Exception):
+    def __init__(self, names: list[str]):
+        self.names = names
 
 
 def declared_type(ref: ast.TypeRef) -> Type | None:

@@ -27,11 +27,13 @@ class Evaluator:
         types: TypeTable,
         env: Mapping[str, Any],
         lazy: Callable[[str], Any] | None = None,
+        parts: frozenset[str] = frozenset(),
     ):
         self.b = backend
         self.types = types
         self.env = dict(env)
         self.lazy = lazy
+        self.parts = parts  # names whose members are parameters of a part: ``handle.r_in``
 
     def type_of(self, e: ast.Expr) -> Type:
         return self.types[id(e)]
@@ -51,24 +53,26 @@ class Evaluator:
         return self.b.boolean(e.value)
 
     def _name(self, e: ast.Name) -> Any:
-        if e.id in self.env:
-            return self.env[e.id]
-        if e.id == "pi":
+        if e.id == "pi" and e.id not in self.env:
             return self.b.pi
-        if self.lazy is not None:
-            value = self.lazy(e.id)
-            self.env[e.id] = value
-            return value
-        raise KeyError(e.id)
+        return self.lookup(e.id)
+
+    def lookup(self, name: str) -> Any:
+        """The value of a name (or ``part.param``), computed on demand and then remembered."""
+        if name in self.env:
+            return self.env[name]
+        if self.lazy is None:
+            raise KeyError(name)
+        value = self.lazy(name)
+        self.env[name] = value
+        return value
 
     def _vector(self, e: ast.Vector) -> Any:
         return tuple(self(x) for x in e.items)
 
     def _member(self, e: ast.Member) -> Any:
-        if isinstance(e.obj, ast.Name):
-            qualified = f"{e.obj.id}.{e.field}"
-            if qualified in self.env:  # a part's parameter
-                return self.env[qualified]
+        if isinstance(e.obj, ast.Name) and e.obj.id in self.parts:
+            return self.lookup(f"{e.obj.id}.{e.field}")  # a part's parameter
         return self(e.obj)["xyz".index(e.field)]
 
     def _ifexpr(self, e: ast.IfExpr) -> Any:

@@ -151,12 +151,14 @@ class _Instance:
         for p in (m for m in decl.members if isinstance(m, ast.Param)):
             env[p.name] = bindings[p.name] if p.name in bindings else self._lift(cc, p, prefix)
         lets = {m.name: m for m in _all(decl) if isinstance(m, ast.Let)}
-        ev = Evaluator(self.b, self.checked.types, env, lambda n: ev(lets[n].value))
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
+        args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
+
+        def on_demand(name: str) -> Any:  # lets and part arguments; the checker ruled out cycles
+            return ev(lets[name].value if name in lets else args[name])
+
+        ev = Evaluator(self.b, self.checked.types, env, on_demand, frozenset(m.name for m in parts))
         part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
-        for part_name, bound in part_bindings.items():
-            for k, v in bound.items():
-                ev.env[f"{part_name}.{k}"] = v
         # links and joints
         q = lambda local: prefix + local  # noqa: E731
         link_of = {BASE_LINK: host_link}
@@ -203,13 +205,20 @@ class _Instance:
         return tuple(symbols) if t.kind == "vec" else symbols[0]
 
     def _part_bindings(self, part: ast.Part, prefix: str, ev: Evaluator) -> dict[str, Any]:
-        """Every parameter of a part: its argument's value, or a lifted parameter of the host."""
-        bound = {a.name: ev(a.value) for a in part.args if a.name is not None}
+        """Every parameter of a part: its argument's value, or a lifted parameter of the host.
+
+        Lifting comes first, in declaration order, so the parameter vector's layout does not
+        depend on which arguments read which part parameters."""
         sub = self.checked.concepts[part.concept]
+        given = {a.name for a in part.args if a.name is not None}
         for p in (m for m in sub.decl.members if isinstance(m, ast.Param)):
-            if p.name not in bound:
-                bound[p.name] = self._lift(sub, p, f"{prefix}{part.name}.")
-        return bound
+            if p.name not in given:
+                ev.env[f"{part.name}.{p.name}"] = self._lift(sub, p, f"{prefix}{part.name}.")
+        return {
+            p.name: ev.lookup(f"{part.name}.{p.name}")
+            for p in sub.decl.members
+            if isinstance(p, ast.Param)
+        }
 
     # -- kinematics
     def _joints(
@@ -307,9 +316,8 @@ class _Instance:
             default = ev(fp.default) if fp.default is not None else (lo + hi) / 2
             free.append(FreeInfo(fp.name, cc.free_types[g.name][fp.name], lo, hi, default))
             symbols.append(sym)
-        sub = Evaluator(
-            self.b, ev.types, {**ev.env, **dict(zip((f.name for f in g.free), symbols))}, ev.lazy
-        )
+        free_env = dict(zip((f.name for f in g.free), symbols))
+        sub = Evaluator(self.b, ev.types, {**ev.env, **free_env}, ev.lazy, ev.parts)
         pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
         width = sub(g.width) if g.width is not None else None
         self.out.grasps[name] = GraspInfo(
@@ -346,7 +354,7 @@ class _Instance:
         )
 
     def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
-        where = f"{prefix}: " if prefix else ""
+        where = f"{prefix.rstrip('.')}: " if prefix else ""
         self.out.requires.append(
             RequireInfo(residual(self.b, ev, r.cond), where + (r.message or ""), _brief(r))
         )

@@ -18,6 +18,10 @@ from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import parse
 
 BASE_LINK = "base"
+KEYWORDS = frozenset(
+    "use concept primitive param require let shape part link joint grasp action in at if then "
+    "else and or not true false choice".split()
+)
 BUILTIN_NAMES = frozenset(
     [
         "sin",
@@ -317,7 +321,16 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
-        if name in BUILTIN_NAMES:
+        if name in KEYWORDS:
+            diags.append(
+                error(
+                    "E113",
+                    f"`{name}` is a keyword and cannot name a declaration",
+                    span,
+                    f"rename it, e.g. `{name}_`",
+                )
+            )
+        elif name in BUILTIN_NAMES:
             diags.append(
                 error(
                     "E113",

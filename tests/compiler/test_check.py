@@ -101,3 +101,37 @@ def test_joint_rules(tmp_path: Path) -> None:
         tmp_path, link + "joint j : prismatic(base -> l) axis (0, 0, 0) range [0, 1mm]"
     ) == ["E221"]
     assert codes(tmp_path, link + "joint j : fixed(base -> l)  action a = pull along j") == ["E219"]
+
+
+def test_part_and_primitive_arguments_are_checked_at_the_defaults(tmp_path: Path) -> None:
+    header = "use primitives.{Sphere}\nuse handles.{CurveHandle}\n"
+    assert codes(tmp_path, "part h = CurveHandle(r_in: 1m)", header) == ["E209", "E210"]
+    assert codes(tmp_path, "part h = CurveHandle(r_in: 48mm)", header) == ["E210"]
+    assert codes(tmp_path, "shape s = Sphere(radius: 5m)", header) == ["E209"]
+    assert codes(tmp_path, "part h = Sphere(radius: 1mm)", header) == ["E114"]
+
+
+def test_part_arguments_may_read_part_parameters(tmp_path: Path) -> None:
+    header = "use handles.{CurveHandle}\n"
+    ok = (
+        "let extra = 8mm  part h = CurveHandle(r_out: h.r_in + extra)\n"
+        "part k = CurveHandle(r_in: h.r_in, r_out: h.r_out)  let reach = k.r_out"
+    )
+    assert codes(tmp_path, ok, header) == []
+    assert codes(tmp_path, "part h = CurveHandle(r_out: h.r_out)", header) == ["E119"]
+
+
+def test_more_values_at_the_defaults(tmp_path: Path) -> None:
+    link = "link l {}\n"
+    assert codes(
+        tmp_path, link + "joint k : revolute(base -> l) axis (0, 1, 0) range [10deg, 90deg]"
+    ) == ["E209"]
+    assert codes(
+        tmp_path, link + "joint k : revolute(base -> l) axis (0, 1, 0) range [90deg, 0deg]"
+    ) == ["E208"]
+    assert codes(tmp_path, "grasp g(s in [0mm, 10mm] = 20mm) = trans(s, 0, 0)") == ["E209"]
+    assert codes(tmp_path, "action p = press toward (0, 0, 0)") == ["E221"]
+    assert codes(tmp_path, link + "joint j : fixed(base -> l) at (1mm, 0, 0)") == ["E219"]
+    assert codes(tmp_path, "param b : bool") == ["E222"]
+    assert codes(tmp_path, "param if : scalar = 1") == ["E113"]
+    assert codes(tmp_path, "let v = (inv(trans(1mm, 0, 0)) * (0, 0, 0)).z + 3mm") == []
