@@ -6,8 +6,10 @@ Exit codes: 0 success, 1 diagnostics (or files that need formatting), 2 usage er
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -82,9 +84,24 @@ def _search_path(p: argparse.ArgumentParser) -> None:
 # ---- check / build ------------------------------------------------------------------------------
 
 
+def _shown(path: str) -> str:
+    """Paths below the working directory print relative to it, as the user typed them."""
+    try:
+        rel = os.path.relpath(path)
+    except ValueError:
+        return path
+    return path if rel.startswith("..") else rel
+
+
+def _relative(diags: Sequence[Diagnostic]) -> list[Diagnostic]:
+    return [replace(d, span=replace(d.span, file=_shown(d.span.file))) for d in diags]
+
+
 def _report(diags: list[Diagnostic], sources: dict[str, str], as_json: bool) -> None:
     if as_json:
         return
+    diags = _relative(diags)
+    sources = {_shown(k): v for k, v in sources.items()}
     if diags:
         err = console(stderr=True)
         text = render_all(diags, sources)
