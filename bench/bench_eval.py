@@ -2,7 +2,11 @@
 
     python bench/bench_eval.py [--n 100000] [--repeats 7]
 
-G(theta, r_out) = Rz(theta) T(0, -r_out, 0) R_rpy(pi/2, 0, pi/2), a 4x4 homogeneous matrix.
+G(theta, r_out) = Rz(theta) T(0, -r_out, 0) R_rpy(pi/2, 0, pi/2) Ry(pi/2), a 4x4 homogeneous
+matrix: the paper's equation with its initial gripper pose G* = Ry(pi/2), exactly as the standard
+library's ``CurveHandle.pull`` states it.  The CasADi and native rows evaluate the function the
+compiler generates from ``concepts/handles.eac`` (inputs: the parameter vector p = (radian,
+r_in, r_out, height), the empty joint vector q and the free parameter theta).
 All variants run side by side in one process; each figure is the median over ``repeats``
 interleaved timeit runs (each sized by ``Timer.autorange``) of the time per call.  Results are
 printed and written to bench/results/eval.json.
@@ -29,6 +33,9 @@ import casadi as ca
 import numpy as np
 
 from grace_dsl.compiler import native
+from grace_dsl.compiler.build import front_end
+from grace_dsl.compiler.functions import casadi_functions
+from grace_dsl.compiler.resolve import stdlib_dir
 
 RESULTS = Path(__file__).resolve().parent / "results" / "eval.json"
 
@@ -47,7 +54,8 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return h
 
 
-R_RPY = rpy_matrix(math.pi / 2, 0.0, math.pi / 2)  # constant: precomputed once
+G_STAR = rpy_matrix(0.0, math.pi / 2, 0.0)  # Ry(pi/2)
+R_RPY = rpy_matrix(math.pi / 2, 0.0, math.pi / 2) @ G_STAR  # constant: precomputed once
 
 
 def numpy_single(theta: float, r_out: float) -> np.ndarray:
@@ -70,21 +78,22 @@ def numpy_batch(theta: np.ndarray, r_out: np.ndarray) -> np.ndarray:
 
 
 def casadi_grasp() -> ca.Function:
-    """The same formula in CasADi SX (the DSL compiler will emit this function)."""
+    """The compiler's function for ``CurveHandle.pull``: G(p, q, theta)."""
+    _, checked, diags = front_end([stdlib_dir()])
+    assert not diags, diags
+    return casadi_functions(checked, "CurveHandle").functions["grasp:pull"]
 
-    def rot(axis: int, a: ca.SX | float) -> ca.SX:
-        c, s = ca.cos(a), ca.sin(a)
-        i, j = [(1, 2), (2, 0), (0, 1)][axis]
-        m = ca.SX.eye(4)
-        m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-        return m
 
-    theta, r_out = ca.SX.sym("theta"), ca.SX.sym("r_out")
-    t = ca.SX.eye(4)
-    t[1, 3] = -r_out
-    r_rpy = rot(2, math.pi / 2) @ rot(1, 0.0) @ rot(0, math.pi / 2)
-    return ca.Function("pull_grasp", [theta, r_out], [rot(2, theta) @ t @ r_rpy],
-                       ["theta", "r_out"], ["G"])
+RADIAN, R_IN, HEIGHT = 2.0, 0.015, 0.012  # the parameters the benchmark keeps fixed
+NO_JOINTS = np.zeros(0)
+
+
+def params(r_out: float | np.ndarray) -> np.ndarray:
+    """The parameter vector (radian, r_in, r_out, height); one row per r_out when batched."""
+    r = np.atleast_1d(np.asarray(r_out, dtype=float))
+    p = np.column_stack([np.full_like(r, RADIAN), np.full_like(r, R_IN), r,
+                         np.full_like(r, HEIGHT)])
+    return p[0] if np.ndim(r_out) == 0 else p
 
 
 # ---------------------------------------------------------------- measurement
@@ -174,25 +183,31 @@ def main() -> int:
     thetas = rng.uniform(-math.pi, math.pi, opts.n)
     radii = rng.uniform(0.02, 0.08, opts.n)
 
+    p0, pn, qn = params(r0), params(radii), np.zeros((0, opts.n))
+    pt, tt = pn.T.copy(), thetas[None, :].copy()  # CasADi's map takes one column per sample
+
     # agreement before timing
     ref_single = numpy_single(theta0, r0)
-    np.testing.assert_allclose(ev(theta0, r0), ref_single, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(fn(theta0, r0).full(), ref_single, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ev(p0, NO_JOINTS, theta0), ref_single, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(fn(p0, NO_JOINTS, theta0).full(), ref_single, rtol=1e-12,
+                               atol=1e-12)
     ref_batch = numpy_batch(thetas, radii)
-    np.testing.assert_allclose(ev.batch(thetas, radii), ref_batch, rtol=1e-12, atol=1e-12)
-    mapped = fmap(thetas[None, :], radii[None, :]).full()
+    np.testing.assert_allclose(ev.batch(pn, NO_JOINTS, thetas), ref_batch, rtol=1e-12,
+                               atol=1e-12)
+    mapped = fmap(pt, qn, tt).full()
     np.testing.assert_allclose(mapped.reshape(4, opts.n, 4).transpose(1, 0, 2), ref_batch,
                                rtol=1e-12, atol=1e-12)
 
     cases: list[tuple[str, str, Callable[[], object]]] = [
         ("single", "numpy (hand-written)", lambda: numpy_single(theta0, r0)),
-        ("single", "CasADi Function call", lambda: fn(theta0, r0)),
-        ("single", "native", lambda: ev(theta0, r0)),
+        ("single", "CasADi Function call", lambda: fn(p0, NO_JOINTS, theta0)),
+        ("single", "native", lambda: ev(p0, NO_JOINTS, theta0)),
         ("batch", f"numpy vectorised, N={opts.n:,}", lambda: numpy_batch(thetas, radii)),
-        ("batch", f"CasADi map thread x2, N={opts.n:,}", lambda: fmap(thetas, radii)),
-        ("batch", f"CasADi map serial, N={opts.n:,}", lambda: fmap_serial(thetas, radii)),
-        ("batch", f"native, 1 thread, N={opts.n:,}", lambda: ev.batch(thetas, radii, threads=1)),
-        ("batch", f"native, N={opts.n:,}", lambda: ev.batch(thetas, radii)),
+        ("batch", f"CasADi map thread x2, N={opts.n:,}", lambda: fmap(pt, qn, tt)),
+        ("batch", f"CasADi map serial, N={opts.n:,}", lambda: fmap_serial(pt, qn, tt)),
+        ("batch", f"native, 1 thread, N={opts.n:,}",
+         lambda: ev.batch(pn, NO_JOINTS, thetas, threads=1)),
+        ("batch", f"native, N={opts.n:,}", lambda: ev.batch(pn, NO_JOINTS, thetas)),
     ]
     stats = measure([call for _, _, call in cases], opts.repeats)
     rows: list[dict[str, Any]] = [{"kind": kind, "case": name, **stat}

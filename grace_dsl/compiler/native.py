@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import hashlib
 import logging
 import os
@@ -104,11 +105,11 @@ class _Arg:
     cols: int
     offset: int
 
-    @property
+    @functools.cached_property
     def size(self) -> int:
         return self.rows * self.cols
 
-    @property
+    @functools.cached_property
     def sample_shapes(self) -> tuple[tuple[int, ...], ...]:
         """Shapes accepted for one sample: (r, c), plus (r,) for vectors and () for scalars."""
         shapes: list[tuple[int, ...]] = [(self.rows, self.cols)]
@@ -159,7 +160,7 @@ class _Layout:
     def sample(self, k: int, value: ArrayLike) -> FloatArray:
         """One unbatched argument as an (r, c) float array."""
         arg = self.inputs[k]
-        arr = np.asarray(value, dtype=np.float64)
+        arr = value if type(value) is np.ndarray else np.asarray(value, dtype=np.float64)
         if arr.shape not in arg.sample_shapes:
             raise ValueError(f"{self.name}: input {arg.name!r} expects shape "
                              f"{(arg.rows, arg.cols)}, got {arr.shape}")
@@ -718,6 +719,9 @@ class NativeFunction:
         self._tls = threading.local()
         self._n_args = len(self._layout.inputs)
         self._scalar_args = all(a.size == 1 for a in self._layout.inputs)
+        # (offset, size, is a vector) per input: the fast copy of scalars and 1-D vectors
+        self._slots = tuple((a.offset, a.size, a.rows == 1 or a.cols == 1)
+                            for a in self._layout.inputs)
 
     def _buffers(self) -> _Buffers:
         buffers = _Buffers.new(self._layout)
@@ -738,8 +742,16 @@ class NativeFunction:
                     b.in_views[k][...] = self._layout.sample(k, value)
         else:
             self._layout.check_arity(args)
+            inp = b.inp
             for k, value in enumerate(args):
-                b.in_views[k][...] = self._layout.sample(k, value)
+                offset, size, vector = self._slots[k]
+                if type(value) in _PY_SCALARS and size == 1:
+                    inp[offset] = value
+                elif (vector and type(value) is np.ndarray and value.ndim == 1
+                      and value.shape[0] == size):
+                    inp[offset : offset + size] = value  # a vector's flat order is its own
+                else:
+                    b.in_views[k][...] = self._layout.sample(k, value)
         self._one(b.in_ptr, b.out_ptr)
         if len(b.out_views) == 1:
             return b.out_views[0].copy()
