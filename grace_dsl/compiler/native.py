@@ -528,13 +528,13 @@ def _cpu_fingerprint() -> str:
 
 
 def default_cache_dir() -> Path:
-    """``$GRACE_DSL_CACHE/native`` or the per-user cache directory."""
-    env = os.environ.get("GRACE_DSL_CACHE")
+    """``$GRACE_CACHE_DIR/native`` or ``native`` in the per-user cache (beside the builds)."""
+    env = os.environ.get("GRACE_CACHE_DIR")
     if env:
         return Path(env) / "native"
     import platformdirs
 
-    return Path(platformdirs.user_cache_dir("grace_dsl")) / "native"
+    return Path(platformdirs.user_cache_dir("grace-dsl")) / "native"
 
 
 def _atomic_write(path: Path, text: str) -> None:
