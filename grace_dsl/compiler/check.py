@@ -151,6 +151,7 @@ class _ConceptChecker:
         self.shape_names: set[str] = set()
         self.free_types: dict[str, dict[str, Type]] = {}
         self.incomplete = False  # set when a name refers to a declaration dropped by the parser
+        self.free_names: set[str] = set()  # a grasp's free parameters while checking its ranges
 
     def err(self, code: str, msg: str, span: ast.Span, hint: str | None = None) -> None:
         self.diags.append(error(code, msg, span, hint))
@@ -414,7 +415,8 @@ class _ConceptChecker:
                     self.coerce(te, T.num(unit), bound.span)
 
     def _grasp(self, g: ast.Grasp) -> None:
-        self.scope = {}
+        self.scope = {}  # ranges and defaults see the concept's parameters, not the free ones
+        self.free_names = {fp.name for fp in g.free}
         free: dict[str, Type] = {}
         for fp in g.free:
             lo, hi = self.expr(fp.lo), self.expr(fp.hi)
@@ -424,7 +426,7 @@ class _ConceptChecker:
             if fp.name in free or fp.name in self.members:
                 self.err("E105", f"`{fp.name}` is already defined", fp.span)
             free[fp.name] = t
-            self.scope[fp.name] = t
+        self.scope, self.free_names = dict(free), set()
         self._expect_pose(g.pose)
         if g.width is not None:
             te = self.expr(g.width)
@@ -606,6 +608,10 @@ class _ConceptChecker:
         if e.id in self.members:
             kind = type(self.members[e.id]).__name__.lower()
             self.err("E202", f"`{e.id}` is a {kind}, not a value", e.span)
+            return ERR
+        if e.id in self.free_names:
+            self.err("E106", f"`{e.id}` is a free grasp parameter and cannot bound another",
+                     e.span, "a grasp parameter's range and default use the concept's parameters")
             return ERR
         known = [*self.scope, *self.param_types, *self.lets, "pi"]
         self.err("E106", f"unknown name `{e.id}`", e.span, did_you_mean(e.id, known))
