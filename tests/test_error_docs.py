@@ -55,3 +55,42 @@ def test_source_emits_only_known_codes() -> None:
     unknown = {c: files for c, files in used.items() if c not in CODES}
     assert not unknown, f"codes used in grace_dsl but missing from CODES: {unknown}"
     assert len(used) >= 30  # the scan finds the emitting code at all
+
+
+GOLDEN = ROOT / "tests" / "golden"
+EXAMPLE = re.compile(r"^`(E\d{3}_[A-Za-z0-9_]+)(?:\.eac|/[^`]+)`:$", re.MULTILINE)
+TEXT_BLOCK = re.compile(r"```text\n(.*?)```", re.DOTALL)
+
+
+def _doc_outputs(doc: str) -> list[tuple[str, re.Match[str]]]:
+    """(golden case, the ```text block after its example) for every example in the doc."""
+    found, seen = [], set()
+    for m in EXAMPLE.finditer(doc):
+        case = m.group(1)
+        if case in seen:
+            continue
+        seen.add(case)
+        block = TEXT_BLOCK.search(doc, m.end())
+        if block is not None:
+            found.append((case, block))
+    return found
+
+
+def test_examples_show_the_golden_output() -> None:
+    """The rendered diagnostics in docs/errors.md are the golden outputs, byte for byte.
+
+    ``UPDATE_GOLDEN=1`` rewrites them from tests/golden/*.expected.
+    """
+    import os
+
+    doc = DOC.read_text("utf-8")
+    stale = []
+    for case, block in reversed(_doc_outputs(doc)):
+        expected = (GOLDEN / f"{case}.expected").read_text("utf-8")
+        if block.group(1) != expected:
+            stale.append(case)
+            doc = doc[: block.start(1)] + expected + doc[block.end(1) :]
+    if stale and os.environ.get("UPDATE_GOLDEN"):
+        DOC.write_text(doc, "utf-8")
+        return
+    assert stale == [], f"docs/errors.md shows stale output for {stale}; run with UPDATE_GOLDEN=1"

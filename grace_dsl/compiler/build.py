@@ -108,8 +108,8 @@ def _usable_cache(cache: Path, diags: list[Diagnostic]) -> Path:
         diags.append(
             Diagnostic(
                 "E301",
-                f"cache directory {cache} is not writable ({exc.strerror}); building in {fallback}",
-                ast.NO_SPAN,
+                f"the cache directory is not writable ({exc.strerror}); building in {fallback}",
+                ast.Span(str(cache), 0, 0, 0, 0),
                 "set GRACE_CACHE_DIR to a writable directory",
                 "warning",
             )

@@ -7,6 +7,7 @@ ranges, every ``require`` true, every grasp range non-empty, every value finite.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -355,7 +356,7 @@ class _ConceptChecker:
                 )
                 continue
             if a.name in seen:
-                self.err("E118", f"argument `{a.name}` is given twice", a.span)
+                self.err("E118", f"argument `{a.name}` is given twice", a.span, "keep one of them")
             seen.add(a.name)
             if a.name not in params:
                 self.err(
@@ -400,18 +401,27 @@ class _ConceptChecker:
         if j.axis is not None:
             te = self.expr(j.axis)
             if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
-                self.err("E230", f"a joint axis is a 3-vector, not {te.type}", j.axis.span)
+                self.err("E230", f"a joint axis is a 3-vector, not {_a(te.type)}", j.axis.span)
         if j.origin is not None:
             self.coerce(self.expr(j.origin), T.vec(3, LENGTH), j.origin.span)
         if j.limits is not None and j.kind in ("revolute", "prismatic"):
             unit = ANGLE if j.kind == "revolute" else LENGTH
-            for bound in (j.limits.lo, j.limits.hi):
-                te = self.expr(bound)
-                if te.type.kind == "num" and te.type.dim not in (unit, SCALAR):
-                    self.err(
-                        "E229", f"a {j.kind} joint's range is in {unit}s, not {te.type}", bound.span
-                    )
-                else:
+            bounds = [(b, self.expr(b)) for b in (j.limits.lo, j.limits.hi)]
+            wrong = [
+                te.type
+                for _, te in bounds
+                if te.type.kind == "num" and te.type.dim not in (unit, SCALAR)
+            ]
+            if wrong:
+                example = "[0deg, 90deg]" if unit == ANGLE else "[0mm, 400mm]"
+                self.err(
+                    "E229",
+                    f"a {j.kind} joint's range is in {unit}s, not in {wrong[0].dim}s",
+                    j.limits.span,
+                    f"e.g. `range {example}`",
+                )
+            else:
+                for bound, te in bounds:
                     self.coerce(te, T.num(unit), bound.span)
 
     def _grasp(self, g: ast.Grasp) -> None:
@@ -434,7 +444,7 @@ class _ConceptChecker:
             if not_length and te.type is not ERR:
                 self.err(
                     "E231",
-                    f"the gripper width is a length, not {te.type}",
+                    f"the gripper width is a length, not {_a(te.type)}",
                     g.width.span,
                     "e.g. `width r_out - r_in` or `width 30mm`",
                 )
@@ -456,7 +466,7 @@ class _ConceptChecker:
             te = self.expr(a.direction)
             if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
                 self.err(
-                    "E230", f"a force direction is a 3-vector, not {te.type}", a.direction.span
+                    "E230", f"a force direction is a 3-vector, not {_a(te.type)}", a.direction.span
                 )
 
     # ---- coercion helpers -----------------------------------------------------------------------
@@ -472,10 +482,10 @@ class _ConceptChecker:
                         "E216",
                         f'"{te.const}" is not one of {want}',
                         span,
-                        did_you_mean(te.const, want.choices),
+                        _choice_hint(te.const, want.choices),
                     )
                 return
-            self.err("E227", "a string can only be a choice's value", span)
+            self.err("E227", "a string can only be a choice's value", span, _unquote_hint(te.const))
             return
         if got.kind == want.kind and got.kind in ("num", "vec") and got.size == want.size:
             if want.integer and te.const is not None:
@@ -610,8 +620,12 @@ class _ConceptChecker:
             self.err("E202", f"`{e.id}` is a {kind}, not a value", e.span)
             return ERR
         if e.id in self.free_names:
-            self.err("E106", f"`{e.id}` is a free grasp parameter and cannot bound another",
-                     e.span, "a grasp parameter's range and default use the concept's parameters")
+            self.err(
+                "E106",
+                f"`{e.id}` is a free grasp parameter and cannot bound another",
+                e.span,
+                "a grasp parameter's range and default use the concept's parameters",
+            )
             return ERR
         known = [*self.scope, *self.param_types, *self.lets, "pi"]
         self.err("E106", f"unknown name `{e.id}`", e.span, did_you_mean(e.id, known))
@@ -888,6 +902,7 @@ class _ConceptChecker:
                         "E208",
                         f"the range of `{name}` is empty: its lower bound is above its upper bound",
                         p.bounds.span,
+                        "swap the bounds: `in [lo, hi]`",
                     )
                     continue
                 out.bounds[name] = (lo, hi)
@@ -904,7 +919,13 @@ class _ConceptChecker:
                 continue
             if t.integer and float(value) != int(value):
                 span = p.default.span if p.default is not None else p.name_span
-                self.err("E226", f"`{name}` is an int, but its default is {float(value):g}", span)
+                what = "its default" if p.default is not None else "the middle of its range"
+                self.err(
+                    "E226",
+                    f"`{name}` is an int, but {what} is {float(value):g}",
+                    span,
+                    f"give it a whole-number default, e.g. `= {int(np.floor(float(value)))}`",
+                )
             if lo is not None and (
                 np.any(np.asarray(value) < np.asarray(lo))
                 or np.any(np.asarray(value) > np.asarray(hi))
@@ -962,6 +983,7 @@ class _ConceptChecker:
                 "E208",
                 f"the range of joint `{j.name}` is empty at the defaults ({shown})",
                 j.limits.span,
+                "swap the bounds: `range [closed, open]`",
             )
         elif not lo <= 0 <= hi:
             self.err(
@@ -982,6 +1004,7 @@ class _ConceptChecker:
                     f"the range of `{fp.name}` is empty at the defaults "
                     f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])",
                     fp.span,
+                    "its lower bound must not exceed its upper bound at the defaults",
                 )
                 return
             free[fp.name] = ev(fp.default) if fp.default is not None else (lo + hi) / 2
@@ -1175,6 +1198,20 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
     if f == "inv":
         return args[0].type if kinds[0] in ("rot", "pose") else bad(0, "a rotation or pose")
     raise AssertionError(f"builtin without a type rule: {f}")
+
+
+def _choice_hint(text: str, choices: tuple[str, ...]) -> str:
+    close = did_you_mean(text, choices)
+    if close is not None:
+        return close.replace("`", '"')
+    return "options: " + ", ".join(f'"{c}"' for c in choices)
+
+
+def _unquote_hint(text: object) -> str | None:
+    """``"300mm"`` written where a length belongs: suggest dropping the quotes."""
+    if isinstance(text, str) and re.fullmatch(r"\s*[0-9.]+(e[+-]?\d+)?(mm|cm|m|deg|rad)?\s*", text):
+        return f"remove the quotes: `{text.strip()}`"
+    return None
 
 
 def _a(t: Type) -> str:

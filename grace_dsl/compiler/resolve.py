@@ -156,9 +156,22 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
 
 def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
     try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = "it is not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else exc.strerror
+        data = path.read_bytes()
+        text = data.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark is not code
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        diags.append(
+            error(
+                "E006",
+                f"not UTF-8 text: byte 0x{data[exc.start]:02x} at line {line}, column {col}",
+                ast.Span(str(path), 0, 0, 0, 0),
+                "save the file as UTF-8",
+            )
+        )
+        return SourceFile(str(path), "", None)
+    except OSError as exc:
+        reason = exc.strerror
         diags.append(
             error("E006", f"cannot read {path}: {reason}", ast.Span(str(path), 0, 0, 0, 0))
         )
@@ -181,7 +194,7 @@ def _missing_module(use: ast.Use, here: Path, search: list[Path]) -> Diagnostic:
     name = ".".join(use.module)
     known = {p.stem for base in [here, *search] if base.is_dir() for p in base.glob("*.eac")}
     hint = did_you_mean(name, known) or "looked in " + ", ".join(str(s) for s in [here, *search])
-    return error("E101", f"module `{name}` not found", use.span, hint)
+    return error("E101", f"module `{name}` not found", use.module_span, hint)
 
 
 def _import_cycles(prog: Program) -> list[Diagnostic]:
@@ -217,7 +230,7 @@ def _use_span(prog: Program, f: str, target: str) -> ast.Span:
     if mod is not None:
         for use in mod.uses:
             if use.module[-1] == stem:
-                return use.span
+                return use.module_span
     return ast.Span(f, 0, 0, 0, 0)
 
 
@@ -354,7 +367,6 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     visible = prog.visible.get(file, {})
     links = {m.name for m in c.members if isinstance(m, ast.Link)}
     joints = {m.name for m in c.members if isinstance(m, ast.Joint)}
-    grasps = {m.name for m in flat_members(c) if isinstance(m, ast.Grasp)}
     for m in flat_members(c):
         quiet = m.concept in dropped or "*" in dropped if isinstance(m, ast.Part) else True
         if isinstance(m, ast.Part) and m.concept not in visible and not quiet:
@@ -379,11 +391,22 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                             "E110",
                             f"`{g}` is not a grasp of `{c.name}`",
                             m.span,
-                            did_you_mean(g, grasps),
+                            did_you_mean(g, all_grasps(prog, c)),
                         )
                     )
     diags += _check_link_tree(c, links, dropped)
     return diags
+
+
+def all_grasps(prog: Program, c: ast.Concept, prefix: str = "", depth: int = 0) -> list[str]:
+    """Every grasp reachable in a concept's part tree, by qualified name."""
+    found: list[str] = []
+    for m in flat_members(c):
+        if isinstance(m, ast.Grasp):
+            found.append(prefix + m.name)
+        elif isinstance(m, ast.Part) and m.concept in prog.concepts and depth < 16:
+            found += all_grasps(prog, prog.concept(m.concept), f"{prefix}{m.name}.", depth + 1)
+    return found
 
 
 def grasp_exists(prog: Program, c: ast.Concept, dotted: str) -> bool:
@@ -401,8 +424,11 @@ def _check_link_tree(c: ast.Concept, links: set[str], dropped: frozenset[str]) -
     diags: list[Diagnostic] = []
     parent_of: dict[str, str] = {}
     known = links | {BASE_LINK}
+    unknown_ends = False  # after an unknown link name, "not attached" would only repeat it
     for j in (m for m in c.members if isinstance(m, ast.Joint)):
         for end, span in ((j.parent, j.parent_span), (j.child, j.child_span)):
+            if end not in known:
+                unknown_ends = True
             if end not in known and end not in dropped:
                 diags.append(
                     error(
@@ -427,20 +453,28 @@ def _check_link_tree(c: ast.Concept, links: set[str], dropped: frozenset[str]) -
             )
         else:
             parent_of[j.child] = j.parent
+    reported: set[str] = set()
     for link in sorted(links):
-        seen, node = {link}, link
+        seen, node = [link], link
         while node in parent_of:
             node = parent_of[node]
             if node in seen:
-                diags.append(
-                    error(
-                        "E112", f"the joints around link `{link}` form a cycle", _link_span(c, link)
+                cycle = seen[seen.index(node) :]
+                if not reported & set(cycle):
+                    reported.update(cycle)
+                    chain = " -> ".join([*cycle, node])
+                    diags.append(
+                        error(
+                            "E112",
+                            f"the joints form a cycle: {chain}",
+                            _link_span(c, node),
+                            "every link hangs from `base` through a chain of joints",
+                        )
                     )
-                )
                 break
-            seen.add(node)
+            seen.append(node)
         else:
-            if node != BASE_LINK and node not in dropped:
+            if node != BASE_LINK and node not in dropped and not unknown_ends:
                 diags.append(
                     error(
                         "E112",

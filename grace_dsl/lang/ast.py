@@ -278,6 +278,7 @@ class Use:
     names: tuple[str, ...] | None
     span: Span = _span()
     name_spans: tuple[Span, ...] = field(default=(), compare=False, repr=False)
+    module_span: Span = _span()
 
 
 @dataclass(frozen=True)

@@ -197,7 +197,8 @@ class _Builder(Transformer):
             raise _TooDeep(
                 error(
                     "E004",
-                    f"expression nested more than {MAX_DEPTH} levels deep",
+                    f"expression nested more than {MAX_DEPTH} levels deep (each operator of a "
+                    "chain such as `a + b + c` counts as a level)",
                     node.span,
                     "split it with `let` definitions",
                 )
@@ -221,11 +222,13 @@ class _Builder(Transformer):
             tuple(t.value for t in names),
             self._span(path[0], names[-1]),
             tuple(_tok_span(self.path, t) for t in names),
+            self._span(path[0], path[-1]),
         )
 
     def use_all(self, c: list[Any]) -> ast.Use:
         (path,) = c
-        return ast.Use(tuple(t.value for t in path), None, self._span(path[0], path[-1]))
+        span = self._span(path[0], path[-1])
+        return ast.Use(tuple(t.value for t in path), None, span, (), span)
 
     def docs(self, c: list[Token]) -> list[Token]:
         return c

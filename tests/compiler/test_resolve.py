@@ -7,7 +7,10 @@ from pathlib import Path
 from grace_dsl.compiler.resolve import resolve
 from tests.conftest import write
 
-LEAF = "use primitives.{Sphere}\nconcept Leaf { param r : length = 1mm  shape s = Sphere(radius: r) }\n"
+LEAF = (
+    "use primitives.{Sphere}\n"
+    "concept Leaf { param r : length = 1mm  shape s = Sphere(radius: r) }\n"
+)
 
 
 def codes(diags: list) -> list[str]:  # type: ignore[type-arg]
@@ -68,19 +71,29 @@ def test_concept_containing_itself(tmp_path: Path) -> None:
 
 
 def test_link_tree_errors(tmp_path: Path) -> None:
-    path = write(
-        tmp_path,
-        "a.eac",
-        (
-            "concept A {\n link l {}\n link m {}\n link n {}\n"
-            " joint j1 : fixed(base -> l)\n joint j2 : fixed(base -> l)\n"
-            " joint j3 : fixed(base -> lnk)\n}\n"
-        ),
+    text = (
+        "concept A {\n link l {}\n link m {}\n link n {}\n"
+        " joint j1 : fixed(base -> l)\n joint j2 : fixed(base -> l)\n}\n"
     )
-    _, diags = resolve([path])
+    _, diags = resolve([write(tmp_path, "a.eac", text)])
     messages = [d.message for d in diags]
     assert codes(diags).count("E112") == 3  # l has two parents; m and n hang from nothing
-    assert "E108" in codes(diags) and any("already has a parent" in m for m in messages)
+    assert any("already has a parent" in m for m in messages)
+
+
+def test_a_misspelt_link_is_reported_once(tmp_path: Path) -> None:
+    text = "concept A {\n link leaf {}\n joint j : fixed(base -> leef)\n}\n"
+    _, diags = resolve([write(tmp_path, "a.eac", text)])
+    assert codes(diags) == ["E108"] and diags[0].hint == "did you mean `leaf`?"
+
+
+def test_a_joint_cycle_is_reported_once(tmp_path: Path) -> None:
+    text = (
+        "concept A {\n link a {}\n link b {}\n"
+        " joint j1 : fixed(a -> b)\n joint j2 : fixed(b -> a)\n}\n"
+    )
+    _, diags = resolve([write(tmp_path, "a.eac", text)])
+    assert codes(diags) == ["E112"] and "cycle" in diags[0].message
 
 
 def test_unknown_joint_and_grasp_in_actions(tmp_path: Path) -> None:
@@ -88,7 +101,8 @@ def test_unknown_joint_and_grasp_in_actions(tmp_path: Path) -> None:
         tmp_path,
         "a.eac",
         (
-            "concept A { link l {}  joint hinge : revolute(base -> l) axis (0, 1, 0) range [0, 1deg]\n"
+            "concept A { link l {}\n"
+            " joint hinge : revolute(base -> l) axis (0, 1, 0) range [0, 1deg]\n"
             " grasp g = trans(0, 0, 0)\n action a = pull along hnige using g, gg }\n"
         ),
     )
