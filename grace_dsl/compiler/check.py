@@ -8,7 +8,7 @@ ranges, every ``require`` true, every grasp range non-empty, every value finite.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -372,12 +372,7 @@ class _ConceptChecker:
 
     def _joint(self, j: ast.Joint) -> None:
         if j.kind not in JOINT_KINDS:
-            self.err(
-                "E218",
-                f"unknown joint kind `{j.kind}`",
-                j.kind_span,
-                did_you_mean(j.kind, JOINT_KINDS) or "kinds: " + ", ".join(JOINT_KINDS),
-            )
+            self._not_one_of("E218", "joint kind", j.kind, j.kind_span, JOINT_KINDS)
             return
         moving = j.kind != "fixed"
         if moving and j.axis is None:
@@ -453,12 +448,7 @@ class _ConceptChecker:
 
     def _action(self, a: ast.Action) -> None:
         if a.verb not in VERBS:
-            self.err(
-                "E220",
-                f"unknown action verb `{a.verb}`",
-                a.verb_span,
-                did_you_mean(a.verb, VERBS) or "verbs: " + ", ".join(VERBS),
-            )
+            self._not_one_of("E220", "action verb", a.verb, a.verb_span, VERBS)
         joint = self.members.get(a.joint) if a.joint else None
         if isinstance(joint, ast.Joint) and joint.kind == "fixed":
             self.err("E219", f"`{a.joint}` is fixed: nothing moves along it", a.joint_span)
@@ -468,6 +458,13 @@ class _ConceptChecker:
                 self.err(
                     "E230", f"a force direction is a 3-vector, not {_a(te.type)}", a.direction.span
                 )
+
+    def _not_one_of(
+        self, code: str, what: str, word: str, span: ast.Span, known: Iterable[str]
+    ) -> None:
+        """An unknown word from a fixed vocabulary: the closest one, or the whole list."""
+        hint = did_you_mean(word, known) or f"{what}s: " + ", ".join(known)
+        self.err(code, f"unknown {what} `{word}`", span, hint)
 
     # ---- coercion helpers -----------------------------------------------------------------------
     def coerce(self, te: TE, want: Type, span: ast.Span) -> None:

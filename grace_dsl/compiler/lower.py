@@ -160,11 +160,10 @@ class _Instance:
         ev = Evaluator(self.b, self.checked.types, env, on_demand, frozenset(m.name for m in parts))
         part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
         # links and joints
-        q = lambda local: prefix + local  # noqa: E731
         link_of = {BASE_LINK: host_link}
         for link in (m for m in decl.members if isinstance(m, ast.Link)):
-            link_of[link.name] = q(link.name)
-            self.out.link_docs[q(link.name)] = link.doc
+            link_of[link.name] = prefix + link.name
+            self.out.link_docs[prefix + link.name] = link.doc
         poses = {BASE_LINK: host_pose}
         self._joints(decl, prefix, ev, poses, link_of)
         for lname, pose in poses.items():

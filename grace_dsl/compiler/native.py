@@ -79,8 +79,13 @@ MIN_SAMPLES_PER_THREAD = 16384
 MAX_AUTO_THREADS = 8
 #: IEEE-preserving optimisation flags.  sin/cos must not be builtins: gcc would merge sin(x) and
 #: cos(x) into one complex sincos call, which blocks vectorisation of the whole loop.
-_OPT_FLAGS = ("-O3", "-fno-math-errno", "-fno-trapping-math", "-fno-builtin-sin",
-              "-fno-builtin-cos")
+_OPT_FLAGS = (
+    "-O3",
+    "-fno-math-errno",
+    "-fno-trapping-math",
+    "-fno-builtin-sin",
+    "-fno-builtin-cos",
+)
 #: Compiler flag tiers, tried in order: tuned for this CPU, then portable.
 FLAG_TIERS: tuple[tuple[str, ...], ...] = (("-march=native", *_OPT_FLAGS), _OPT_FLAGS)
 _LINK_FLAGS = ("-shared", "-fPIC", "-pthread")
@@ -130,8 +135,9 @@ class _Layout:
 
     @staticmethod
     def of(fn: casadi.Function) -> _Layout:
-        def args(n: int, sparsity: Callable[[int], Any], name: Callable[[int], str]
-                 ) -> tuple[_Arg, ...]:
+        def args(
+            n: int, sparsity: Callable[[int], Any], name: Callable[[int], str]
+        ) -> tuple[_Arg, ...]:
             out, offset = [], 0
             for k in range(n):
                 sp = sparsity(k)
@@ -162,8 +168,10 @@ class _Layout:
         arg = self.inputs[k]
         arr = value if type(value) is np.ndarray else np.asarray(value, dtype=np.float64)
         if arr.shape not in arg.sample_shapes:
-            raise ValueError(f"{self.name}: input {arg.name!r} expects shape "
-                             f"{(arg.rows, arg.cols)}, got {arr.shape}")
+            raise ValueError(
+                f"{self.name}: input {arg.name!r} expects shape "
+                f"{(arg.rows, arg.cols)}, got {arr.shape}"
+            )
         return arr.reshape(arg.rows, arg.cols)
 
     def split_batch(self, args: Sequence[ArrayLike]) -> tuple[int, list[tuple[FloatArray, bool]]]:
@@ -181,9 +189,11 @@ class _Layout:
                 split.append((arr.reshape(arg.rows, arg.cols), False))
                 continue
             if arr.ndim == 0 or arr.shape[1:] not in arg.sample_shapes:
-                raise ValueError(f"{self.name}: input {arg.name!r} expects shape "
-                                 f"(N, {arg.rows}, {arg.cols}) or {(arg.rows, arg.cols)}, "
-                                 f"got {arr.shape}")
+                raise ValueError(
+                    f"{self.name}: input {arg.name!r} expects shape "
+                    f"(N, {arg.rows}, {arg.cols}) or {(arg.rows, arg.cols)}, "
+                    f"got {arr.shape}"
+                )
             if n is not None and arr.shape[0] != n:
                 raise ValueError(f"{self.name}: batch sizes disagree ({n} vs {arr.shape[0]})")
             n = arr.shape[0]
@@ -396,7 +406,7 @@ def _lower(fn: casadi.Function) -> _Kernel:
 def _declarations(kernel: _Kernel, indent: str) -> list[str]:
     names = [f"w{i}" for i in range(kernel.n_work)]
     names += [var for _, _, var in kernel.stores if var != "0.0"]
-    return [f"{indent}double {', '.join(names[i:i + 16])};" for i in range(0, len(names), 16)]
+    return [f"{indent}double {', '.join(names[i : i + 16])};" for i in range(0, len(names), 16)]
 
 
 def _render_one(kernel: _Kernel, symbol: str) -> list[str]:
@@ -596,8 +606,14 @@ def _build(cmd: list[str], files: dict[str, str], out_dir: Path, name: str) -> P
 
 def _library_key(source: str) -> str:
     cmd = find_compiler() or ["<none>"]
-    parts = [source, _compiler_identity(tuple(cmd)), repr(FLAG_TIERS), repr(_LINK_FLAGS),
-             _cpu_fingerprint(), str(ABI_VERSION)]
+    parts = [
+        source,
+        _compiler_identity(tuple(cmd)),
+        repr(FLAG_TIERS),
+        repr(_LINK_FLAGS),
+        _cpu_fingerprint(),
+        str(ABI_VERSION),
+    ]
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:24]
 
 
@@ -626,8 +642,9 @@ def _generate_all(functions: Mapping[str, casadi.Function]) -> dict[str, _Genera
     return generated
 
 
-def build_native_library(functions: Mapping[str, casadi.Function],
-                         out_dir: Path | None = None) -> Path | None:
+def build_native_library(
+    functions: Mapping[str, casadi.Function], out_dir: Path | None = None
+) -> Path | None:
     """Compile ``functions`` into one cached ``.so`` named by a hash of code, compiler and flags.
 
     Functions that cannot be lowered are skipped (they stay on CasADi); ``fast_functions`` on
@@ -683,11 +700,17 @@ class _Buffers:
         inp, out = np.zeros(max(1, layout.n_in)), np.zeros(max(1, layout.n_out))
 
         def views(buf: FloatArray, args: tuple[_Arg, ...]) -> list[FloatArray]:
-            return [buf[a.offset:a.offset + a.size].reshape(a.rows, a.cols, order="F")
-                    for a in args]
+            return [
+                buf[a.offset : a.offset + a.size].reshape(a.rows, a.cols, order="F") for a in args
+            ]
 
-        return _Buffers(inp, views(inp, layout.inputs), views(out, layout.outputs),
-                        ctypes.c_void_p(inp.ctypes.data), ctypes.c_void_p(out.ctypes.data))
+        return _Buffers(
+            inp,
+            views(inp, layout.inputs),
+            views(out, layout.outputs),
+            ctypes.c_void_p(inp.ctypes.data),
+            ctypes.c_void_p(out.ctypes.data),
+        )
 
 
 _PTRS = ctypes.POINTER(ctypes.c_void_p)
@@ -705,8 +728,9 @@ class NativeFunction:
 
     backend = "native"
 
-    def __init__(self, fn: casadi.Function, libs: tuple[ctypes.CDLL, ctypes.CDLL],
-                 symbol: str) -> None:
+    def __init__(
+        self, fn: casadi.Function, libs: tuple[ctypes.CDLL, ctypes.CDLL], symbol: str
+    ) -> None:
         """``libs``: the library loaded as ``PyDLL`` (GIL held) and as ``CDLL`` (GIL released)."""
         self.name = fn.name()
         self._layout = _Layout.of(fn)
@@ -720,8 +744,9 @@ class NativeFunction:
         self._n_args = len(self._layout.inputs)
         self._scalar_args = all(a.size == 1 for a in self._layout.inputs)
         # (offset, size, is a vector) per input: the fast copy of scalars and 1-D vectors
-        self._slots = tuple((a.offset, a.size, a.rows == 1 or a.cols == 1)
-                            for a in self._layout.inputs)
+        self._slots = tuple(
+            (a.offset, a.size, a.rows == 1 or a.cols == 1) for a in self._layout.inputs
+        )
 
     def _buffers(self) -> _Buffers:
         buffers = _Buffers.new(self._layout)
@@ -747,8 +772,12 @@ class NativeFunction:
                 offset, size, vector = self._slots[k]
                 if type(value) in _PY_SCALARS and size == 1:
                     inp[offset] = value
-                elif (vector and type(value) is np.ndarray and value.ndim == 1
-                      and value.shape[0] == size):
+                elif (
+                    vector
+                    and type(value) is np.ndarray
+                    and value.ndim == 1
+                    and value.shape[0] == size
+                ):
                     inp[offset : offset + size] = value  # a vector's flat order is its own
                 else:
                     b.in_views[k][...] = self._layout.sample(k, value)
@@ -765,14 +794,20 @@ class NativeFunction:
         ``threads`` defaults to one thread per :data:`MIN_SAMPLES_PER_THREAD` samples.
         """
         n, split = self._layout.split_batch(args)
-        blocks = [_soa_block(arg, arr, batched, n)
-                  for arg, (arr, batched) in zip(self._layout.inputs, split, strict=True)]
+        blocks = [
+            _soa_block(arg, arr, batched, n)
+            for arg, (arr, batched) in zip(self._layout.inputs, split, strict=True)
+        ]
         outs = [np.empty((a.size, n)) for a in self._layout.outputs]
         in_ptrs = (ctypes.c_void_p * max(1, len(blocks)))(*[b.ctypes.data for b in blocks])
         out_ptrs = (ctypes.c_void_p * max(1, len(outs)))(*[o.ctypes.data for o in outs])
         self._batch(n, in_ptrs, out_ptrs, _auto_threads(n, threads))
-        return _pack([o.reshape(a.cols, a.rows, n).transpose(2, 1, 0)
-                      for a, o in zip(self._layout.outputs, outs, strict=True)])
+        return _pack(
+            [
+                o.reshape(a.cols, a.rows, n).transpose(2, 1, 0)
+                for a, o in zip(self._layout.outputs, outs, strict=True)
+            ]
+        )
 
 
 def _soa_block(arg: _Arg, arr: FloatArray, batched: bool, n: int) -> FloatArray:
@@ -810,8 +845,9 @@ class CasadiEvaluator:
             if len(self._maps) >= 4:
                 self._maps.pop(next(iter(self._maps)))
             parallel = "thread" if threads > 1 else "serial"
-            self._maps[key] = (self._fn.map(n, parallel, threads) if threads > 1
-                               else self._fn.map(n, parallel))
+            self._maps[key] = (
+                self._fn.map(n, parallel, threads) if threads > 1 else self._fn.map(n, parallel)
+            )
         return self._maps[key]
 
     def batch(self, *args: ArrayLike, threads: int | None = None) -> Outputs:
@@ -819,15 +855,22 @@ class CasadiEvaluator:
         n, split = self._layout.split_batch(args)
         if n == 0:
             return _pack([np.empty((0, a.rows, a.cols)) for a in self._layout.outputs])
-        mapped = [arr.transpose(1, 0, 2).reshape(a.rows, n * a.cols) if batched else arr
-                  for a, (arr, batched) in zip(self._layout.inputs, split, strict=True)]
+        mapped = [
+            arr.transpose(1, 0, 2).reshape(a.rows, n * a.cols) if batched else arr
+            for a, (arr, batched) in zip(self._layout.inputs, split, strict=True)
+        ]
         res = self._map(n, self._threads if threads is None else threads).call(mapped)
-        return _pack([np.asarray(r.full()).reshape(a.rows, n, a.cols).transpose(1, 0, 2)
-                      for a, r in zip(self._layout.outputs, res, strict=True)])
+        return _pack(
+            [
+                np.asarray(r.full()).reshape(a.rows, n, a.cols).transpose(1, 0, 2)
+                for a, r in zip(self._layout.outputs, res, strict=True)
+            ]
+        )
 
 
-def _load(path: Path, functions: Mapping[str, casadi.Function],
-          generated: Mapping[str, _Generated]) -> dict[str, NativeFunction]:
+def _load(
+    path: Path, functions: Mapping[str, casadi.Function], generated: Mapping[str, _Generated]
+) -> dict[str, NativeFunction]:
     libs = (ctypes.PyDLL(str(path)), ctypes.CDLL(str(path)))
     loaded: dict[str, NativeFunction] = {}
     for name, fn in functions.items():
@@ -842,8 +885,9 @@ def _load(path: Path, functions: Mapping[str, casadi.Function],
     return loaded
 
 
-def load_native_library(path: Path, functions: Mapping[str, casadi.Function]
-                        ) -> dict[str, NativeFunction]:
+def load_native_library(
+    path: Path, functions: Mapping[str, casadi.Function]
+) -> dict[str, NativeFunction]:
     """Wrap the kernels of a library built by :func:`build_native_library`.
 
     Returns one :class:`NativeFunction` per function that can be lowered.  Regenerates each
@@ -854,8 +898,9 @@ def load_native_library(path: Path, functions: Mapping[str, casadi.Function]
     return _load(path, {n: functions[n] for n in generated}, generated)
 
 
-def fast_functions(functions: Mapping[str, casadi.Function], cache_dir: Path | None = None,
-                   *, native: bool = True) -> dict[str, Evaluator]:
+def fast_functions(
+    functions: Mapping[str, casadi.Function], cache_dir: Path | None = None, *, native: bool = True
+) -> dict[str, Evaluator]:
     """Best evaluator for each function; all native ones share one cached ``.so``.
 
     Functions that cannot be lowered, or all of them when no compiler works (or ``native`` is
@@ -873,7 +918,8 @@ def fast_functions(functions: Mapping[str, casadi.Function], cache_dir: Path | N
     return result
 
 
-def fast_function(fn: casadi.Function, cache_dir: Path | None = None, *,
-                  native: bool = True) -> Evaluator:
+def fast_function(
+    fn: casadi.Function, cache_dir: Path | None = None, *, native: bool = True
+) -> Evaluator:
     """Best evaluator for ``fn``: compiled C if possible, else CasADi's VM."""
     return fast_functions({fn.name(): fn}, cache_dir, native=native)[fn.name()]

@@ -74,6 +74,7 @@ class Program:
     concepts: dict[str, ConceptEntry] = field(default_factory=dict)
     visible: dict[str, dict[str, str]] = field(default_factory=dict)  # file -> name -> file
     imports: dict[str, list[str]] = field(default_factory=dict)
+    use_targets: dict[str, list[str | None]] = field(default_factory=dict)  # per `use`, in order
     roots: list[str] = field(default_factory=list)
     # Names a failed `use` should have brought in ("*" for a whole module): no follow-on errors.
     unresolved: dict[str, set[str]] = field(default_factory=dict)
@@ -117,11 +118,12 @@ def resolve(
             continue
         src = _load(path, diags)
         prog.files[key] = src
-        prog.imports[key] = []
+        prog.imports[key], prog.use_targets[key] = [], []
         if src.module is None:
             continue
         for use in src.module.uses:
             target = _find_module(use.module, path.parent, search)
+            prog.use_targets[key].append(str(target) if target is not None else None)
             if target is None:
                 diags.append(_missing_module(use, path.parent, search))
                 prog.unresolved.setdefault(key, set()).update(use.names or ("*",))
@@ -267,7 +269,7 @@ def _visibility(prog: Program) -> list[Diagnostic]:
     for path, src in prog.files.items():
         seen = {n: path for n in by_file.get(path, [])}
         if src.module is not None:
-            for use, target in zip(src.module.uses, _targets(prog, path, src.module)):
+            for use, target in zip(src.module.uses, prog.use_targets[path]):
                 if target is None:
                     continue
                 exported = by_file.get(target, [])
@@ -288,21 +290,6 @@ def _visibility(prog: Program) -> list[Diagnostic]:
                         )
         prog.visible[path] = seen
     return diags
-
-
-def _targets(prog: Program, path: str, module: ast.Module) -> list[str | None]:
-    """The file each ``use`` of a module resolved to (None where it did not)."""
-    found = {
-        Path(t).with_suffix("").parts[-len(u.module) :]: t
-        for u in module.uses
-        for t in prog.imports.get(path, [])
-        if Path(t).with_suffix("").parts[-len(u.module) :] == u.module
-    }
-    return [found.get(u.module) for u in module.uses]
-
-
-def member_names(m: object) -> str | None:
-    return getattr(m, "name", None)
 
 
 def flat_members(c: ast.Concept) -> Iterable[ast.Member_]:
