@@ -1,14 +1,13 @@
-"""Check pass: types, units, ranges and values at the defaults.
+"""Check pass: types and units, then values at the defaults (``values.py``).
 
-Every expression gets a type (recorded in a table keyed by node identity for lowering).  Then the
-concept is evaluated at its defaults with the NumPy backend: bounds ordered, defaults inside their
-ranges, every ``require`` true, every grasp range non-empty, every value finite.
+Every expression gets a type (recorded in a table keyed by node identity for lowering).  Unit
+rules live in ``types.py``; a concept that type-checks is then evaluated at its defaults.
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,10 +15,10 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.compiler import types as T
-from grace_dsl.compiler.backends import NUMPY, literal_value
-from grace_dsl.compiler.evaluate import BUILTINS, Evaluator
+from grace_dsl.compiler.evaluate import BUILTINS
 from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
+from grace_dsl.compiler.values import SET_OPS, check_values
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 
@@ -37,7 +36,6 @@ VERBS = {  # verb -> default sense along a joint
     "open": "opening",
     "close": "closing",
 }
-SET_OPS = ("union", "difference")
 
 
 @dataclass(frozen=True)
@@ -100,35 +98,6 @@ def _parts_first(prog: Program) -> list[str]:
     return order
 
 
-def names_in(e: ast.Expr) -> Iterator[ast.Name]:
-    """Every name an expression mentions, without recursion."""
-    stack: list[Any] = [e]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, ast.Name):
-            yield node
-        elif isinstance(node, ast.Unary):
-            stack.append(node.operand)
-        elif isinstance(node, ast.Binary):
-            stack += [node.left, node.right]
-        elif isinstance(node, ast.Call):
-            stack += [a.value for a in node.args]
-        elif isinstance(node, ast.Vector):
-            stack += list(node.items)
-        elif isinstance(node, ast.Member):
-            stack.append(node.obj)
-        elif isinstance(node, ast.IfExpr):
-            stack += [node.cond, node.then, node.orelse]
-
-
-def _fmt(value: float, dim: Dim) -> str:
-    if dim == LENGTH:
-        return f"{value * 1000:g}mm"
-    if dim == ANGLE:
-        return f"{np.degrees(value):g}deg"
-    return f"{value:g}"
-
-
 class _ConceptChecker:
     def __init__(
         self,
@@ -164,7 +133,7 @@ class _ConceptChecker:
         result = CheckedConcept(self.decl, self.file, self.param_types, self.free_types)
         result.ok = not self.diags and not self.incomplete
         if result.ok:
-            self._check_values(result)
+            self.diags += check_values(result, self.done, self.types)
             result.ok = not self.diags
         return result
 
@@ -234,7 +203,7 @@ class _ConceptChecker:
             )
 
     def _constant(self, e: ast.Expr, what: str) -> None:
-        for n in names_in(e):
+        for n in ast.names_in(e):
             if n.id in self.param_types or n.id in self.lets:
                 self.err(
                     "E207",
@@ -815,273 +784,6 @@ class _ConceptChecker:
         return TE(_builtin_type(self, e, args))
 
     # ---- values at the defaults -----------------------------------------------------------------
-    def _check_values(self, out: CheckedConcept) -> None:
-        with np.errstate(all="ignore"):
-            self._check_param_values(out)
-            if self.diags:
-                return
-            ev = self._defaults_evaluator(out)
-            if ev is None:
-                return
-            for m in flat_members(self.decl):
-                self._check_member_values(m, ev)
-
-    def _defaults_evaluator(self, out: CheckedConcept) -> Evaluator | None:
-        """The concept evaluated at its defaults; None (after a diagnostic) on a cycle."""
-        ev = evaluator_at(self.decl, out.defaults, self.done, self.types)
-        if ev is None:
-            return None
-        parts = [m for m in flat_members(self.decl) if isinstance(m, ast.Part)]
-        for part in parts:
-            for arg in (a for a in part.args if a.name):
-                try:
-                    ev.lookup(f"{part.name}.{arg.name}")
-                except _Cycle as cycle:
-                    self.err(
-                        "E119",
-                        f"`{part.name}.{arg.name}` is defined in terms of itself: "
-                        + " -> ".join(cycle.names),
-                        arg.span,
-                    )
-                    return None
-        return ev
-
-    def _check_arguments(self, m: ast.Part | ast.Shape, ev: Evaluator) -> None:
-        """A part's or primitive's arguments at the defaults: inside its ranges, and meeting
-        its requirements (otherwise every instance would fail at run time)."""
-        call = m.value if isinstance(m, ast.Shape) else None
-        if isinstance(m, ast.Part):
-            target, args, prefix = m.concept, m.args, f"{m.name}."
-        elif isinstance(call, ast.Call) and call.func not in SET_OPS:
-            target, args, prefix = call.func, call.args, None
-        else:
-            return
-        sub = self.done.get(target)
-        if sub is None or not sub.ok:
-            return
-        values = dict(sub.defaults)
-        for a in (a for a in args if a.name in sub.param_types):
-            assert a.name is not None
-            value = ev.lookup(prefix + a.name) if prefix else ev(a.value)
-            values[a.name] = value
-            if a.name in sub.bounds and not _within(value, *sub.bounds[a.name]):
-                lo, hi = sub.bounds[a.name]
-                dim = sub.param_types[a.name].dim
-                self.err(
-                    "E209",
-                    f"`{a.name}` = {_fmt_any(value, dim)} at the defaults lies "
-                    f"outside the range of {target}",
-                    a.value.span,
-                    f"{target}.{a.name} is in [{_fmt_any(lo, dim)}, {_fmt_any(hi, dim)}]",
-                )
-        sub_ev = evaluator_at(sub.decl, values, self.done, self.types)
-        if sub_ev is None:
-            return
-        for r in (x for x in sub.decl.members if isinstance(x, ast.Require)):
-            if not bool(sub_ev(r.cond)):
-                self.err(
-                    "E210",
-                    f"with these arguments, {target} fails its requirement"
-                    + (f" ({r.message})" if r.message else ""),
-                    getattr(m, "name_span", m.span),
-                    f"at {r.cond.span.file}:{r.cond.span.line}",
-                )
-
-    def _check_param_values(self, out: CheckedConcept) -> None:
-        ev = Evaluator(NUMPY, self.types, {})
-        for name, p in self.params.items():
-            t = self.param_types[name]
-            lo = hi = None
-            if p.bounds is not None:
-                lo, hi = ev(p.bounds.lo), ev(p.bounds.hi)
-                if np.any(np.asarray(lo) > np.asarray(hi)):
-                    self.err(
-                        "E208",
-                        f"the range of `{name}` is empty: its lower bound is above its upper bound",
-                        p.bounds.span,
-                        "swap the bounds: `in [lo, hi]`",
-                    )
-                    continue
-                out.bounds[name] = (lo, hi)
-            if p.default is not None:
-                value = ev(p.default)
-                if t.kind == "choice":
-                    value = float(t.choices.index(value))
-                elif t.kind == "bool":
-                    value = float(bool(value))
-            elif p.bounds is not None:
-                value = (np.asarray(lo) + np.asarray(hi)) / 2
-                value = tuple(value) if t.kind == "vec" else float(value)
-            else:
-                continue
-            if t.integer and float(value) != int(value):
-                span = p.default.span if p.default is not None else p.name_span
-                what = "its default" if p.default is not None else "the middle of its range"
-                self.err(
-                    "E226",
-                    f"`{name}` is an int, but {what} is {float(value):g}",
-                    span,
-                    f"give it a whole-number default, e.g. `= {int(np.floor(float(value)))}`",
-                )
-            if lo is not None and (
-                np.any(np.asarray(value) < np.asarray(lo))
-                or np.any(np.asarray(value) > np.asarray(hi))
-            ):
-                assert p.default is not None and p.bounds is not None
-                self.err(
-                    "E209",
-                    f"the default of `{name}` lies outside its range",
-                    p.default.span,
-                    f"the range is [{_fmt_any(lo, t.dim)}, {_fmt_any(hi, t.dim)}]",
-                )
-            out.defaults[name] = value
-
-    def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
-        name = getattr(m, "name", None)
-        if name is not None and self.members.get(name) is not m:
-            return  # a duplicate, already reported (E105)
-        if isinstance(m, ast.Require):
-            if not bool(ev(m.cond)):
-                used = sorted({n.id for n in names_in(m.cond)} & set(ev.env) - {"pi"})
-                shown = ", ".join(f"{n} = {_fmt_any(ev.env[n], self._dim(n))}" for n in used)
-                self.err(
-                    "E210",
-                    "this requirement is false at the defaults"
-                    + (f" ({m.message})" if m.message else ""),
-                    m.cond.span,
-                    f"at the defaults {shown}" if shown else None,
-                )
-        elif isinstance(m, ast.Let):
-            self._finite(ev(m.value), m.value.span, f"`{m.name}`")
-        elif isinstance(m, ast.Joint):
-            self._check_joint_values(m, ev)
-        elif isinstance(m, ast.Action) and m.direction is not None:
-            if not np.any(np.asarray(ev(m.direction), dtype=float)):
-                self.err(
-                    "E221",
-                    f"the direction of action `{m.name}` is the zero vector",
-                    m.direction.span,
-                )
-        elif isinstance(m, ast.Grasp):
-            self._check_grasp_values(m, ev)
-        elif isinstance(m, (ast.Part, ast.Shape)):
-            self._check_arguments(m, ev)
-
-    def _check_joint_values(self, j: ast.Joint, ev: Evaluator) -> None:
-        if j.axis is not None and not np.any(np.asarray(ev(j.axis), dtype=float)):
-            self.err("E221", f"the axis of joint `{j.name}` is the zero vector", j.axis.span)
-        if j.limits is None or j.kind not in ("revolute", "prismatic"):
-            return
-        lo, hi = float(ev(j.limits.lo)), float(ev(j.limits.hi))
-        dim = ANGLE if j.kind == "revolute" else LENGTH
-        shown = f"[{_fmt(lo, dim)}, {_fmt(hi, dim)}]"
-        if lo > hi:
-            self.err(
-                "E208",
-                f"the range of joint `{j.name}` is empty at the defaults ({shown})",
-                j.limits.span,
-                "swap the bounds: `range [closed, open]`",
-            )
-        elif not lo <= 0 <= hi:
-            self.err(
-                "E209",
-                f"the range of joint `{j.name}` ({shown}) leaves out 0, its closed state",
-                j.limits.span,
-                "q = 0 is closed and positive q opens: e.g. `range [0, 90deg]`",
-            )
-
-    def _check_grasp_values(self, g: ast.Grasp, ev: Evaluator) -> None:
-        free = {}
-        for fp in g.free:
-            lo, hi = ev(fp.lo), ev(fp.hi)
-            if not lo <= hi:
-                dim = self.free_types[g.name][fp.name].dim
-                self.err(
-                    "E211",
-                    f"the range of `{fp.name}` is empty at the defaults "
-                    f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])",
-                    fp.span,
-                    "its lower bound must not exceed its upper bound at the defaults",
-                )
-                return
-            free[fp.name] = ev(fp.default) if fp.default is not None else (lo + hi) / 2
-            if fp.default is not None and not _within(free[fp.name], lo, hi):
-                dim = self.free_types[g.name][fp.name].dim
-                self.err(
-                    "E209",
-                    f"the default of `{fp.name}` lies outside its range at the defaults",
-                    fp.default.span,
-                    f"the range is [{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}]",
-                )
-        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy, ev.parts)
-        self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
-        if g.width is not None:
-            self._finite(sub(g.width), g.width.span, f"the width of grasp `{g.name}`")
-
-    def _finite(self, value: Any, span: ast.Span, what: str) -> None:
-        if isinstance(value, str):
-            return
-        arr = np.asarray(value, dtype=float)
-        if not np.all(np.isfinite(arr)):
-            self.err(
-                "E225",
-                f"{what} is not a finite number at the defaults",
-                span,
-                "look for a division by zero or the square root of a negative number",
-            )
-
-    def _dim(self, name: str) -> Dim:
-        t = self.param_types.get(name) or self.let_types.get(name) or T.num()
-        return t.dim
-
-
-def evaluator_at(
-    decl: ast.Concept,
-    values: dict[str, Any],
-    done: dict[str, CheckedConcept],
-    types: dict[int, Type],
-) -> Evaluator | None:
-    """A NumPy evaluator of ``decl`` with parameter ``values``: lets and part arguments are
-    computed on demand (raising ``_Cycle`` on a loop), a part's unbound parameters take their
-    concept's defaults.  None when a part's concept did not check."""
-    lets = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Let)}
-    parts = [m for m in flat_members(decl) if isinstance(m, ast.Part)]
-    args = {f"{p.name}.{a.name}": a for p in parts for a in p.args if a.name}
-    env = dict(values)
-    for part in parts:
-        sub = done.get(part.concept)
-        if sub is None or not sub.ok:
-            return None
-        env.update(
-            {
-                f"{part.name}.{k}": v
-                for k, v in sub.defaults.items()
-                if f"{part.name}.{k}" not in args
-            }
-        )
-    visiting: list[str] = []
-
-    def value(name: str) -> Any:
-        if name in visiting:
-            raise _Cycle([*visiting[visiting.index(name) :], name])
-        visiting.append(name)
-        try:
-            return ev(lets[name].value if name in lets else args[name].value)
-        finally:
-            visiting.pop()
-
-    ev = Evaluator(NUMPY, types, env, value, frozenset(p.name for p in parts))
-    return ev
-
-
-def _within(value: Any, lo: Any, hi: Any) -> bool:
-    v = np.asarray(value, dtype=float)
-    return bool(np.all(v >= np.asarray(lo) - 1e-12) and np.all(v <= np.asarray(hi) + 1e-12))
-
-
-class _Cycle(Exception):
-    def __init__(self, names: list[str]):
-        self.names = names
 
 
 def declared_type(ref: ast.TypeRef) -> Type | None:
@@ -1250,12 +952,3 @@ def _example(const: Any, unit: str) -> str:
     if isinstance(const, tuple):
         return "(" + ", ".join(_example(c, unit) for c in const) + ")"
     return f"{float(const):g}{unit}"
-
-
-def _fmt_any(value: Any, dim: Dim) -> str:
-    arr = np.atleast_1d(np.asarray(value, dtype=float))
-    parts = [_fmt(float(v), dim) for v in arr]
-    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
-
-
-__all__ = ["check", "Checked", "CheckedConcept", "names_in", "literal_value"]

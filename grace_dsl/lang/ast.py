@@ -6,8 +6,9 @@ what lets the formatter promise ``parse(fmt(x)) == parse(x)``.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Union
+from typing import Any, Union
 
 
 @dataclass(frozen=True, order=True)
@@ -286,3 +287,24 @@ class Module:
     path: str
     uses: tuple[Use, ...]
     concepts: tuple[Concept, ...]
+
+
+def names_in(e: Expr) -> Iterator[Name]:
+    """Every name an expression mentions, without recursion."""
+    stack: list[Any] = [e]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Name):
+            yield node
+        elif isinstance(node, Unary):
+            stack.append(node.operand)
+        elif isinstance(node, Binary):
+            stack += [node.left, node.right]
+        elif isinstance(node, Call):
+            stack += [a.value for a in node.args]
+        elif isinstance(node, Vector):
+            stack += list(node.items)
+        elif isinstance(node, Member):
+            stack.append(node.obj)
+        elif isinstance(node, IfExpr):
+            stack += [node.cond, node.then, node.orelse]
