@@ -81,7 +81,14 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
             [("p", p), ("q", q), ("x", x)],
             [("f", force_direction(low, a.name, [x[0], x[1], x[2]]))],
         )
-    add("requires", [("p", p)], [("r", _vec([r.residual for r in low.requires]))])
+    add(
+        "requires",
+        [("p", p)],
+        [
+            ("r", _vec([r.residual for r in low.requires])),
+            ("holds", _vec([r.holds for r in low.requires])),
+        ],
+    )
     moving = [j for j in low.joints if j.kind != "fixed"]
     add(
         "joint_limits",

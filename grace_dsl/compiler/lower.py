@@ -95,7 +95,8 @@ class ShapeInfo:
 
 @dataclass(frozen=True)
 class RequireInfo:
-    residual: Any  # <= 0 when the requirement holds
+    residual: Any  # <= 0 when the requirement holds (a measure of violation, for fitting)
+    holds: Any  # 1 when the condition is true, else 0: the exact test, strict `<` included
     message: str
     source: str
 
@@ -355,7 +356,12 @@ class _Instance:
     def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
         where = f"{prefix.rstrip('.')}: " if prefix else ""
         self.out.requires.append(
-            RequireInfo(residual(self.b, ev, r.cond), where + (r.message or ""), _brief(r))
+            RequireInfo(
+                residual(self.b, ev, r.cond),
+                self.b.as_number(ev(r.cond)),
+                where + (r.message or ""),
+                _brief(r),
+            )
         )
 
 

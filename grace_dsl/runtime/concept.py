@@ -141,13 +141,8 @@ def pack_params(
     return p
 
 
-def check_requirements(
-    residuals: np.ndarray, messages: list[str], concept: str, tol: float = 1e-12
-) -> None:
-    bad = [
-        m or f"requirement {i + 1}"
-        for i, (r, m) in enumerate(zip(residuals, messages))
-        if not r <= tol
-    ]
+def check_requirements(holds: np.ndarray, messages: list[str], concept: str) -> None:
+    """Raise if any requirement is false (``holds`` is 1 where one is true, 0 where not)."""
+    bad = [m or f"requirement {i + 1}" for i, (h, m) in enumerate(zip(holds, messages)) if h != 1]
     if bad:
         raise RequirementError(f"{concept}: parameters violate: " + "; ".join(bad))

@@ -45,8 +45,9 @@ class Instance:
         concept: Concept, pose: Any, joints: Mapping[str, float], params: Mapping[str, Any]
     ) -> Instance:
         p = concept.pack(**params)
+        _, holds = concept.function("requires")(p)
         check_requirements(
-            np.atleast_1d(concept.function("requires")(p)).reshape(-1),
+            np.atleast_1d(holds).reshape(-1),
             [r["message"] for r in concept.entry["requires"]],
             concept.name,
         )

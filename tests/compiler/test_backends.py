@@ -65,9 +65,13 @@ def test_backends_agree(stdlib_front_end, name: str) -> None:  # type: ignore[no
             got = np.asarray(compiled.functions[f"grasp:{gname}"](p, q, gv))
             want = np.array([[sympy_value(v, gsubs) for v in row] for row in g.pose])
             np.testing.assert_allclose(got, want, atol=1e-9, rtol=0)
-        residuals = np.atleast_1d(np.asarray(compiled.functions["requires"](p))).reshape(-1)
+        residuals, holds = (
+            np.atleast_1d(np.asarray(x)).reshape(-1) for x in compiled.functions["requires"](p)
+        )
         want_r = [sympy_value(r.residual, subs) for r in exact.requires]
         np.testing.assert_allclose(residuals, want_r, atol=1e-9, rtol=0)
+        want_h = [sympy_value(r.holds, subs) for r in exact.requires]
+        np.testing.assert_array_equal(holds, want_h)
 
 
 def test_sympy_keeps_exact_forms(stdlib_front_end) -> None:  # type: ignore[no-untyped-def]

@@ -153,3 +153,16 @@ def test_bad_queries_give_typed_errors(lib) -> None:  # type: ignore[no-untyped-
         lib["SunkenDoor"].instantiate(hinge_side="top")
     with pytest.raises(eac.UnknownNameError):
         lib["Nope"]
+
+
+def test_strict_requirements_are_strict(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`require a < b` rejects a == b at run time, as the checker does at the defaults."""
+    src = tmp_path / "strict.eac"
+    src.write_text(
+        "concept S {\n    param a : length in [0mm, 10mm] = 1mm\n"
+        '    param b : length in [0mm, 10mm] = 5mm\n    require a < b "a below b"\n}\n'
+    )
+    concept = eac.compile_paths([src])["S"]
+    concept.instantiate(a=0.004, b=0.005)
+    with pytest.raises(eac.RequirementError, match="a below b"):
+        concept.instantiate(a=0.005, b=0.005)
