@@ -16,7 +16,8 @@ import trimesh
 from numpy.typing import NDArray
 
 from grace_dsl.geometry.errors import GeometryError
-from grace_dsl.geometry.primitives import FULL_TURN, Params, validate
+from grace_dsl.geometry.primitives import FULL_TURN, PRIMITIVES, Params, Value, validate
+from grace_dsl.geometry.props import bounds
 
 DEFAULT_RESOLUTION = 64  # segments per full circle: volume error ~0.2 % (sphere ~0.3 %)
 _FULL_TOL = 1e-9
@@ -135,6 +136,10 @@ def _f(v: Any) -> float:
     return float(v)
 
 
+def _scaled(v: Value, k: float) -> Value:
+    return tuple(x * k for x in v) if isinstance(v, tuple) else v * k
+
+
 BUILDERS: dict[str, Callable[[Params, int], trimesh.Trimesh]] = {
     "Cuboid": _cuboid,
     "Cylinder": _cylinder,
@@ -158,7 +163,15 @@ def primitive_mesh(
     p = validate(name, params)
     if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 3:
         raise GeometryError(f"resolution must be an integer >= 3, got {resolution!r}")
-    mesh = BUILDERS[name](p, resolution)
+    # trimesh merges vertices on an absolute tolerance, which tears small spheres and capsules
+    # at the poles: build at unit size and scale.
+    scale = float(np.ptp(bounds(name, p), axis=0).max())
+    unit = {
+        k: _scaled(v, 1 / scale) if kind != "angle" else v
+        for (k, v), kind in zip(p.items(), (ps.kind for ps in PRIMITIVES[name].params))
+    }
+    mesh = BUILDERS[name](unit, resolution)
+    mesh.apply_scale(scale)
     if mesh.volume < 0:
         mesh.invert()
     return mesh

@@ -41,7 +41,8 @@ VOLUMES: dict[str, Callable[[Params], float]] = {
 
 def volume(name: str, params: Mapping[str, Any]) -> float:
     """The analytic volume in cubic metres."""
-    return VOLUMES[name](validate(name, params))
+    p = validate(name, params)  # first: an unknown name is a GeometryError, not a KeyError
+    return VOLUMES[name](p)
 
 
 def _sector_xy(r_in: float, r_out: float, ang: float, axis: float) -> tuple[Any, Any]:
