@@ -632,15 +632,25 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
     ):
         last = text.rstrip().splitlines() or [""]
         span = ast.Span(path, len(last), len(last[-1]) + 1, len(last), len(last[-1]) + 2)
+        open_lines = _open_braces(text, len(text))
+        if open_lines:
+            return error(
+                "E003",
+                f"unexpected end of file: the `{{` on line {open_lines[-1]} is never closed",
+                span,
+                "add the missing `}`",
+            )
         expected = _expected_list(set(getattr(exc, "expected", ()) or ()))
         return error(
-            "E003", f"unexpected end of file; expected {expected}", span, "is a `}` or `)` missing?"
+            "E003", f"unexpected end of file; expected {expected}", span, "is a `)` missing?"
         )
     assert isinstance(exc, UnexpectedToken)
     tok = exc.token
     span = _tok_span(path, tok)
     found = f"`{tok.value}`" if tok.type not in ("DOC", "TDOC") else "a doc comment"
     message = f"unexpected {found}; expected {_expected_list(set(exc.expected))}"
+    if tok.type == "RBRACE" and not _open_braces(text, tok.start_pos or 0):
+        return error("E002", "unexpected `}`: no block is open here", span, "one `}` too many?")
     if tok.type == "RBRACE" and _doc_right_before(text, tok):
         return error(
             "E002",
@@ -677,6 +687,10 @@ def _blank_declaration(text: str, exc: UnexpectedInput) -> tuple[str, str | None
     """Blank the lines of the declaration that holds the error; None when recovery is hopeless."""
     if isinstance(exc, UnexpectedEOF) or getattr(getattr(exc, "token", None), "type", "") == "$END":
         return None
+    tok = getattr(exc, "token", None)
+    if tok is not None and tok.type == "RBRACE" and not _open_braces(text, tok.start_pos or 0):
+        at = tok.start_pos or 0  # a stray `}`: drop just that character
+        return text[:at] + " " + text[at + 1 :], None
     lines = text.split("\n")
     err = max(0, min(len(lines) - 1, _error_line(exc, text) - 1))
     start = err
@@ -699,6 +713,31 @@ def _error_line(exc: UnexpectedInput, text: str) -> int:
     """The line of the broken declaration: the one before, when the error is at a fresh start."""
     prev = _unfinished_before(exc, text)
     return prev[0] if prev is not None else exc.line
+
+
+def _open_braces(text: str, upto: int) -> list[int]:
+    """Lines of the `{` still open at offset ``upto`` (strings and comments skipped)."""
+    stack: list[int] = []
+    line, i = 1, 0
+    while i < upto:
+        ch = text[i]
+        if ch == "\n":
+            line += 1
+        elif ch == "/" and text.startswith("//", i):
+            end = text.find("\n", i)
+            i = upto if end < 0 else end
+            continue
+        elif ch == '"':
+            end = text.find('"', i + 1)
+            newline = text.find("\n", i + 1)
+            i = end + 1 if end >= 0 and (newline < 0 or end < newline) else i + 1
+            continue
+        elif ch == "{":
+            stack.append(line)
+        elif ch == "}" and stack:
+            stack.pop()
+        i += 1
+    return stack
 
 
 def _doc_right_before(text: str, tok: Token) -> bool:

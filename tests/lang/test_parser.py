@@ -189,3 +189,14 @@ def test_a_joint_clause_given_twice() -> None:
 def test_a_doc_comment_that_documents_nothing() -> None:
     (d,) = parse("concept A { let x = 1\n/// orphan\n}", "t.eac").diagnostics
     assert d.code == "E002" and "documents nothing" in d.message
+
+
+def test_an_unclosed_brace_names_its_line() -> None:
+    (d,) = parse("concept A {\n    let x = 1\n", "t.eac").diagnostics
+    assert d.code == "E003" and "line 1 is never closed" in d.message
+
+
+def test_a_stray_closing_brace_is_dropped_alone() -> None:
+    r = parse("concept A { let x = 1 }\n}\nconcept B { let y = 2 }\n", "t.eac")
+    assert [(d.code, d.span.line) for d in r.diagnostics] == [("E002", 2)]
+    assert r.module is not None and [c.name for c in r.module.concepts] == ["A", "B"]
