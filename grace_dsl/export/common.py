@@ -1,0 +1,71 @@
+"""Helpers shared by the URDF and MJCF writers: number formatting, rotations, mesh files."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+
+from grace_dsl.export.shapes import Geom
+
+
+def num(v: float) -> str:
+    """Enough digits that a round trip through the XML keeps poses to ~1e-15."""
+    out = format(float(v), ".15g")
+    return "0" if out == "-0" else out
+
+
+def vec(values: Iterable[float]) -> str:
+    return " ".join(num(v) for v in values)
+
+
+def rpy(r: np.ndarray) -> tuple[float, float, float]:
+    """URDF's roll, pitch, yaw of a rotation matrix: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    pitch = math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))
+    if math.hypot(r[0, 0], r[1, 0]) > 1e-9:
+        return math.atan2(r[2, 1], r[2, 2]), pitch, math.atan2(r[1, 0], r[0, 0])
+    return 0.0, pitch, math.atan2(-r[0, 1], r[1, 1])  # gimbal lock: only yaw - roll is defined
+
+
+def quat_wxyz(r: np.ndarray) -> tuple[float, float, float, float]:
+    """The unit quaternion (w, x, y, z; MJCF's order) of a rotation matrix (Shepperd's method)."""
+    tr = float(np.trace(r))
+    if tr > 0:
+        s = 2 * math.sqrt(tr + 1)
+        return s / 4, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s
+    i = int(np.argmax(np.diag(r)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2 * math.sqrt(1 + r[i, i] - r[j, j] - r[k, k])
+    q = [0.0, 0.0, 0.0, 0.0]
+    q[0] = (r[k, j] - r[j, k]) / s
+    q[1 + i] = s / 4
+    q[1 + j] = (r[j, i] + r[i, j]) / s
+    q[1 + k] = (r[k, i] + r[i, k]) / s
+    return q[0], q[1], q[2], q[3]
+
+
+def mesh_dir_name(path: Path) -> str:
+    """The mesh directory next to ``path``, as written in the XML (relative to the file)."""
+    return f"{path.stem}_meshes"
+
+
+def write_mesh(geom: Geom, directory: Path | None, relative: str, ext: str) -> str:
+    """Write the geom's mesh (in its own frame) as ``<name>.<ext>``; return the relative name."""
+    filename = f"{relative}/{geom_file_stem(geom)}.{ext}"
+    if directory is not None:
+        directory.mkdir(parents=True, exist_ok=True)
+        geom.mesh.export(directory / f"{geom_file_stem(geom)}.{ext}")
+    return filename
+
+
+def geom_file_stem(geom: Geom) -> str:
+    return "".join(c if c.isalnum() or c == "_" else "_" for c in geom.name.replace(".", "__"))
+
+
+def to_text(root: ET.Element, comment: str) -> str:
+    ET.indent(root, space="  ")
+    body = ET.tostring(root, encoding="unicode")
+    return f'<?xml version="1.0" encoding="utf-8"?>\n<!-- {comment} -->\n{body}\n'
