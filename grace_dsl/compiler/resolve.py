@@ -15,13 +15,9 @@ from pathlib import Path
 
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
-from grace_dsl.lang.parser import parse
+from grace_dsl.lang.parser import KEYWORDS, parse
 
 BASE_LINK = "base"
-KEYWORDS = frozenset(
-    "use concept primitive param require let shape part link joint grasp action in at if then "
-    "else and or not true false choice".split()
-)
 BUILTIN_NAMES = frozenset(
     [
         "sin",
@@ -321,7 +317,7 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
-        if name in KEYWORDS:
+        if name in KEYWORDS:  # only reachable for names the parser let through
             diags.append(
                 error(
                     "E113",

@@ -30,6 +30,10 @@ from grace_dsl.lang.diagnostics import Diagnostic, error
 MAX_DEPTH = 64
 MAX_RECOVERIES = 25
 UNITS = ("mm", "cm", "m", "deg", "rad")
+KEYWORDS = frozenset(
+    "use concept primitive param require let shape part link joint grasp action in at if then "
+    "else and or not true false choice".split()
+)
 SYNC_KEYWORDS = frozenset(
     [
         "param",
@@ -92,10 +96,16 @@ class DocPostLex(PostLex):
     always_accept = ("DOC",)
 
     def process(self, stream: Iterator[Token]) -> Iterator[Token]:
-        prev_line = -1
+        prev_line, prev_type = -1, ""
         for tok in stream:
             if tok.type == "DOC" and tok.line == prev_line:
                 tok = Token.new_borrow_pos("TDOC", tok.value, tok)
+            elif tok.type == "NAME" and tok.value in KEYWORDS and prev_type not in ("DOT", "USE"):
+                # The contextual lexer reads a keyword as a name where no keyword fits; keep it
+                # a keyword, so `let x = a +` followed by `let y` ends at the right place.
+                # Module paths (`use a.b`) and members (`h.part`) may still use any word.
+                tok = Token.new_borrow_pos(tok.value.upper(), tok.value, tok)
+            prev_type = tok.type
             prev_line = tok.end_line if tok.end_line is not None else -1
             yield tok
 
@@ -606,11 +616,19 @@ def _describe(term: str) -> str:
     return term
 
 
+_OPERATORS = {"ADD_OP", "MUL_OP", "POW_OP", "CMP_OP", "DOT", "AND", "OR"}
+
+
 def _expected_list(expected: set[str]) -> str:
-    words = sorted({_describe(t) for t in expected if t not in ("DOC", "TDOC")})
+    """What the parser wanted, in words; the operators that could continue an expression
+    are folded into one phrase, so the structural choices stay visible."""
+    shown = expected - {"DOC", "TDOC"}
+    words = sorted({_describe(t) for t in shown - _OPERATORS})
+    if shown & _OPERATORS:
+        words.append("an operator")
     if len(words) > 6:
         words = [*words[:6], "..."]
-    return ", ".join(words)
+    return ", ".join(words) if len(words) < 2 else ", ".join(words[:-1]) + " or " + words[-1]
 
 
 def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic:
@@ -649,6 +667,14 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
     span = _tok_span(path, tok)
     found = f"`{tok.value}`" if tok.type not in ("DOC", "TDOC") else "a doc comment"
     message = f"unexpected {found}; expected {_expected_list(set(exc.expected))}"
+    before = exc.token_history[-1] if exc.token_history else None
+    if (
+        tok.type == "NAME"
+        and tok.value in UNITS
+        and before is not None
+        and (before.type == "NUMBER")
+    ):
+        message = f"unexpected `{tok.value}` after the number `{before.value}`"
     if tok.type == "RBRACE" and not _open_braces(text, tok.start_pos or 0):
         return error("E002", "unexpected `}`: no block is open here", span, "one `}` too many?")
     if tok.type == "RBRACE" and _doc_right_before(text, tok):
@@ -664,6 +690,8 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
         message = f"declaration ends too early, before `{tok.value}` on line {tok.line}; " + (
             f"expected {_expected_list(set(exc.expected))}"
         )
+        hint = _token_hint(exc, text) if tok.value not in SYNC_KEYWORDS else None
+        return error("E002", message, span, hint or "is something missing at the end of it?")
     return error("E002", message, span, _token_hint(exc, text))
 
 
@@ -672,6 +700,8 @@ def _token_hint(exc: UnexpectedToken, text: str) -> str | None:
     prev = exc.token_history[-1] if exc.token_history else None
     if tok.type == "NAME" and tok.value in UNITS and prev is not None and prev.type == "NUMBER":
         return f"write the unit right after the number: `{prev.value}{tok.value}`"
+    if tok.value in KEYWORDS and "NAME" in expected:
+        return f"`{tok.value}` is a keyword and cannot be a name; try `{tok.value}_`"
     if tok.type == "EQUAL" and "COLON" in expected:
         return "a parameter needs a type: `param x : length = 5mm`"
     if "RPAR" in expected and "COMMA" in expected:

@@ -133,5 +133,5 @@ def test_more_values_at_the_defaults(tmp_path: Path) -> None:
     assert codes(tmp_path, "action p = press toward (0, 0, 0)") == ["E221"]
     assert codes(tmp_path, link + "joint j : fixed(base -> l) at (1mm, 0, 0)") == ["E219"]
     assert codes(tmp_path, "param b : bool") == ["E222"]
-    assert codes(tmp_path, "param if : scalar = 1") == ["E113"]
+    assert codes(tmp_path, "param if : scalar = 1") == ["E002"]  # a keyword is never a name
     assert codes(tmp_path, "let v = (inv(trans(1mm, 0, 0)) * (0, 0, 0)).z + 3mm") == []

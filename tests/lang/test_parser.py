@@ -83,7 +83,7 @@ def test_joint_grasp_and_action() -> None:
     c = one_concept(
         "concept D { link leaf { grasp g(t in [0, 1] = 0.5, u in [0, 2]) = trans(t, u, 0) "
         "width 3mm }\n joint h : revolute(base -> leaf) axis (0, 1, 0) at (1mm, 0, 0) "
-        "range [0, 90deg] opens -\n action open = pull along h opening using g, part.g2\n"
+        "range [0, 90deg] opens -\n action open = pull along h opening using g, handle.g2\n"
         " action press = press toward (0, 0, -1) }"
     )
     link, joint, open_, press = c.members
@@ -92,7 +92,7 @@ def test_joint_grasp_and_action() -> None:
     assert [f.name for f in grasp.free] == ["t", "u"] and grasp.free[1].default is None
     assert isinstance(joint, ast.Joint)
     assert (joint.kind, joint.parent, joint.child, joint.opens) == ("revolute", "base", "leaf", -1)
-    assert isinstance(open_, ast.Action) and open_.using == ("g", "part.g2")
+    assert isinstance(open_, ast.Action) and open_.using == ("g", "handle.g2")
     assert (open_.verb, open_.joint, open_.sense) == ("pull", "h", "opening")
     assert isinstance(press, ast.Action) and press.direction is not None and press.joint is None
 
@@ -200,3 +200,14 @@ def test_a_stray_closing_brace_is_dropped_alone() -> None:
     r = parse("concept A { let x = 1 }\n}\nconcept B { let y = 2 }\n", "t.eac")
     assert [(d.code, d.span.line) for d in r.diagnostics] == [("E002", 2)]
     assert r.module is not None and [c.name for c in r.module.concepts] == ["A", "B"]
+
+
+def test_keywords_stay_keywords() -> None:
+    """A keyword never becomes a name, so an unfinished expression ends at the next line."""
+    src = "concept A {\n    let x = w +\n    let y = x * 2\n}\n"
+    (d,) = parse(src, "t.eac").diagnostics
+    assert (d.code, d.span.line) == ("E002", 2) and "before `let` on line 3" in d.message
+    (d,) = parse("concept A { param if : scalar = 1 }", "t.eac").diagnostics
+    assert "`if` is a keyword" in (d.hint or "")
+    ok = parse("use primitive.shapes\nconcept A { let x = h.part }", "t.eac")
+    assert ok.diagnostics == ()  # module paths and members may use any word
