@@ -67,6 +67,19 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--json", action="store_true")
     _search_path(e)
     e.set_defaults(run=cmd_explain)
+
+    x = sub.add_parser("export", help="write an instance of a concept as URDF or MJCF")
+    x.add_argument("concept")
+    x.add_argument("paths", nargs="*", help="default: the standard library")
+    fmt = x.add_mutually_exclusive_group(required=True)
+    fmt.add_argument("--urdf", metavar="FILE", help="write URDF here (meshes next to it)")
+    fmt.add_argument("--mjcf", metavar="FILE", help="write MJCF (MuJoCo) here (meshes next to it)")
+    x.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="SI")
+    x.add_argument("--params-json", metavar="FILE", help="a JSON object {name: value} (SI)")
+    x.add_argument("--joint", action="append", default=[], metavar="NAME=VALUE", help="SI")
+    x.add_argument("--json", action="store_true", help="print a summary as JSON")
+    _search_path(x)
+    x.set_defaults(run=cmd_export)
     return p
 
 
@@ -349,6 +362,16 @@ def cmd_explain(args: argparse.Namespace) -> int:
             ],
         )
     return 0
+
+
+# ---- export -------------------------------------------------------------------------------------
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from grace_dsl.export.command import run_export
+
+    lib = _library(args.paths, args.search_path)
+    return 1 if lib is None else run_export(args, lib)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ from grace_dsl.export.shapes import Geom
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
 
+MJCF_NATIVE = {"box", "cylinder", "sphere", "capsule"}
 JOINT_TYPES = {"revolute": "hinge", "continuous": "hinge", "prismatic": "slide"}
 
 
@@ -38,7 +39,11 @@ def export_mjcf(
 ) -> str:
     """The MJCF text of ``inst``; with ``path``, also write it and its meshes
     (``<stem>_meshes/`` next to it, referenced relatively)."""
-    model = build_model(inst, options)
+    return write_mjcf(build_model(inst, options), path)
+
+
+def write_mjcf(model: ExportModel, path: str | Path | None = None) -> str:
+    """The MJCF text of an already built model (written to ``path`` when given)."""
     target = Path(path) if path is not None else None
     writer = _Writer(model, target)
     text = to_text(writer.tree(), f"{model.name}, exported by grace_dsl")

@@ -34,7 +34,11 @@ def export_urdf(
 
     Without a path the meshes are referenced (as if written next to ``model.urdf``) but not
     written: pass a path for a loadable model whenever the concept has non-native shapes."""
-    model = build_model(inst, options)
+    return write_urdf(build_model(inst, options), path)
+
+
+def write_urdf(model: ExportModel, path: str | Path | None = None) -> str:
+    """The URDF text of an already built model (written to ``path`` when given)."""
     target = Path(path) if path is not None else None
     relative = mesh_dir_name(target or Path("model.urdf"))
     mesh_dir = target.parent / relative if target is not None else None
