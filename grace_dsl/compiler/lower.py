@@ -5,8 +5,10 @@ qualified names (``handle.pull``), its base link hangs on the host link through 
 its parameters are either bound by the part's arguments or lifted into the host as parameters of
 their own (``handle.r_in``), so perception can estimate them.
 
-Every link frame coincides with the concept frame when all joints are closed (q = 0); a joint
-moves its child as ``T(o) * M(s q) * T(-o)`` where o is the joint origin and s its opening sense.
+Every link frame coincides with the frame of the concept that declares it when all joints are
+closed (q = 0): the concept frame for the concept's own links, the part's placed frame for a
+part's links.  A joint moves its child as ``T(o) * M(s q) * T(-o)`` where o is the joint origin
+and s its opening sense; ``JointInfo.axis`` already carries that sense.
 """
 
 from __future__ import annotations

@@ -78,6 +78,7 @@ def concept_entry(
 ) -> dict[str, Any]:
     """The manifest entry of one concept (``low``: CasADi model, ``exact``: SymPy model)."""
     offsets = np.cumsum([0] + [p.size for p in low.params]).tolist()
+    operand_of = {o: s.name for s in low.shapes for o in s.operands}
     moving = [j for j in low.joints if j.kind != "fixed"]
     return {
         "name": decl.name,
@@ -128,6 +129,7 @@ def concept_entry(
                 "link": s.link,
                 "primitive": s.primitive,
                 "operands": list(s.operands),
+                "operand_of": operand_of.get(s.name),  # consumed by a union/difference
                 "args": [
                     {"name": k, "size": len(v) if isinstance(v, tuple) else 1}
                     for k, v in s.args.items()
