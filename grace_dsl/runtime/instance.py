@@ -7,7 +7,7 @@ the instance pose and R its rotation.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,6 +19,10 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
 
 
+_EYE3 = np.eye(3)
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
 def _pose(value: Any) -> np.ndarray:
     if value is None:
         return np.eye(4)
@@ -26,7 +30,7 @@ def _pose(value: Any) -> np.ndarray:
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise ParameterError(f"pose must be a finite 4x4 matrix, got shape {m.shape}")
     r = m[:3, :3]
-    if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or not np.allclose(m[3], [0, 0, 0, 1]):
+    if np.abs(r.T @ r - _EYE3).max() > 1e-6 or np.abs(m[3] - _LAST_ROW).max() > 1e-12:
         raise ParameterError(
             "pose must be a rigid transform (orthonormal rotation, last row 0 0 0 1)"
         )
@@ -39,6 +43,10 @@ class Instance:
     p: np.ndarray  # flat SI parameter vector
     q: np.ndarray  # moving joint values
     pose: np.ndarray  # world <- concept
+    # Per-grasp (lo, hi, default) of the free parameters: fixed once the parameters are.
+    _ranges: dict[str, tuple[np.ndarray, ...]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @staticmethod
     def create(
@@ -95,10 +103,14 @@ class Instance:
 
     def grasp_range(self, name: str) -> dict[str, tuple[float, float]]:
         entry = self._grasp_entry(name)
-        lo, hi, _ = (
-            np.atleast_1d(x).reshape(-1) for x in self.concept.function("grasp_range", name)(self.p)
-        )
+        lo, hi, _ = self._free_box(name)
         return {f["name"]: (float(a), float(b)) for f, a, b in zip(entry["free"], lo, hi)}
+
+    def _free_box(self, name: str) -> tuple[np.ndarray, ...]:
+        if name not in self._ranges:
+            outputs = self.concept.function("grasp_range", name)(self.p)
+            self._ranges[name] = tuple(np.atleast_1d(x).reshape(-1) for x in outputs)
+        return self._ranges[name]
 
     def _free_vector(self, name: str, free: Mapping[str, float]) -> np.ndarray:
         entry = self._grasp_entry(name)
@@ -108,9 +120,7 @@ class Instance:
                 raise UnknownNameError(
                     f"grasp {name} has no free parameter {k!r}" + suggest(k, names or ["(none)"])
                 )
-        lo, hi, default = (
-            np.atleast_1d(x).reshape(-1) for x in self.concept.function("grasp_range", name)(self.p)
-        )
+        lo, hi, default = self._free_box(name)
         g = default.copy()
         for i, k in enumerate(names):
             if k in free:
