@@ -1,0 +1,137 @@
+"""The standard concept library (grace_dsl/concepts/): every concept is documented, instantiates
+over its parameter ranges, its actions push the grasp the way the joint moves, and its grasps fit a
+Franka Panda hand (0-80 mm)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import grace_dsl as eac
+
+PARTS = [
+    "StraightHandle",
+    "RingPull",
+    "TBarHandle",
+    "LeverHandle",
+    "PocketHandle",
+    "PanelEdge",
+    "RoundKnob",
+    "LidKnob",
+    "RotaryDial",
+    "PushButton",
+    "RockerSwitch",
+    "ToggleSwitch",
+]
+OBJECTS: list[str] = []
+WRITTEN = PARTS + OBJECTS
+PANDA_MAX_WIDTH = 0.080
+DRAWS = 20
+
+
+@pytest.fixture(scope="session")
+def lib() -> eac.Library:
+    return eac.load_library()
+
+
+def _concepts(lib: eac.Library) -> list[str]:
+    return [n for n in lib if lib[n].entry["kind"] != "primitive"]
+
+
+def test_library_has_the_written_concepts(lib: eac.Library) -> None:
+    missing = [n for n in WRITTEN if n not in lib]
+    assert not missing
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_concept_is_documented_and_usable(lib: eac.Library, name: str) -> None:
+    c = lib[name]
+    assert c.doc and c.doc.strip(), f"{name} has no synopsis"
+    assert c.grasps, f"{name} has no grasp"
+    assert c.actions, f"{name} has no action"
+    assert c.entry["kind"] != "primitive"
+
+
+def _draw(c: eac.Concept, rng: np.random.Generator) -> dict[str, object]:
+    """A random value of every parameter, inside its range."""
+    out: dict[str, object] = {}
+    for p in c.params:
+        if p.kind == "choice":
+            out[p.name] = str(rng.choice(list(p.choices)))
+        elif p.kind == "bool":
+            out[p.name] = bool(rng.integers(2))
+        elif p.size and p.size > 1:
+            lo, hi = np.asarray(p.lo, float), np.asarray(p.hi, float)
+            out[p.name] = tuple(float(v) for v in rng.uniform(lo, hi))
+        elif p.kind == "int":
+            out[p.name] = int(rng.integers(int(p.lo), int(p.hi) + 1))
+        else:
+            out[p.name] = float(rng.uniform(p.lo, p.hi))
+    return out
+
+
+def _instances(c: eac.Concept, seed: int = 0) -> list[eac.Instance]:
+    """The defaults and the random draws that satisfy the requirements."""
+    rng = np.random.default_rng(seed)
+    out = [c.instantiate()]
+    for _ in range(DRAWS):
+        try:
+            out.append(c.instantiate(**_draw(c, rng)))
+        except eac.RequirementError:
+            continue
+    return out
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_instantiates_over_its_ranges(lib: eac.Library, name: str) -> None:
+    c = lib[name]
+    insts = _instances(c)
+    assert len(insts) - 1 >= 3, f"only {len(insts) - 1} of {DRAWS} random draws of {name} are valid"
+    for inst in insts:
+        for g in c.grasps:
+            pose = inst.grasp(g)
+            assert np.all(np.isfinite(pose))
+            assert np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-9)
+
+
+def _grasp_for(c: eac.Concept, action: str) -> str:
+    using = c.actions[action]["using"]
+    return using[0] if using else next(iter(c.grasps))
+
+
+def _joint_actions(c: eac.Concept) -> list[str]:
+    return [a for a, e in c.actions.items() if e["joint"]]
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_actions_move_the_grasp_along_the_force(lib: eac.Library, name: str) -> None:
+    c = lib[name]
+    for inst in _instances(c, seed=1)[:6]:
+        limits = inst.joint_limits()
+        for action in _joint_actions(c):
+            entry = c.actions[action]
+            joint = entry["joint"]
+            lo, hi = limits.get(joint, (-np.inf, np.inf))
+            sign = 1.0 if entry["sense"] == "opening" else -1.0
+            # start inside the range so that a step in either sense stays inside it
+            span = hi - lo if np.isfinite(hi - lo) else 2.0
+            q0 = lo + 0.5 * span if np.isfinite(lo) else 0.3
+            dq = sign * min(1e-3, 1e-3 * span)
+            moved = c.instantiate(**inst.params, joints={joint: q0})
+            grasp = moved.grasp(_grasp_for(c, action))
+            force = moved.force(action, grasp=grasp)
+            path = moved.follow(action, grasp=grasp, to=q0 + dq, steps=2)
+            step = path[-1][:3, 3] - path[0][:3, 3]
+            assert np.linalg.norm(step) > 0, f"{name}.{action}: the grasp does not move"
+            cos = float(force @ step) / np.linalg.norm(step)
+            assert cos > 0.99, f"{name}.{action}: force {force} vs motion {step} (cos {cos:.3f})"
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_grasp_widths_fit_a_panda_hand(lib: eac.Library, name: str) -> None:
+    c = lib[name]
+    inst = c.instantiate()
+    for g in c.grasps:
+        w = inst.grasp_width(g)
+        assert w is not None, f"{name}.{g} has no width"
+        assert 0.0 <= w <= PANDA_MAX_WIDTH, f"{name}.{g} needs {w * 1000:.1f} mm"
