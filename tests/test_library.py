@@ -23,7 +23,13 @@ PARTS = [
     "RockerSwitch",
     "ToggleSwitch",
 ]
-OBJECTS: list[str] = []
+OBJECTS = [
+    "HingedCabinet",
+    "CabinetDrawer",
+    "ChestOfDrawers",
+    "Safe",
+    "RoomDoor",
+]
 WRITTEN = PARTS + OBJECTS
 PANDA_MAX_WIDTH = 0.080
 DRAWS = 20
