@@ -29,6 +29,22 @@ OBJECTS = [
     "ChestOfDrawers",
     "Safe",
     "RoomDoor",
+    "Microwave",
+    "Oven",
+    "Dishwasher",
+    "Refrigerator",
+    "WashingMachine",
+    "Laptop",
+    "SlidingWindow",
+    "CasementWindow",
+    "LidBox",
+    "TrashCan",
+    "CookingPot",
+    "Bucket",
+    "ScrewCapBottle",
+    "Toilet",
+    "LeverFaucet",
+    "KnobFaucet",
 ]
 WRITTEN = PARTS + OBJECTS
 PANDA_MAX_WIDTH = 0.080
