@@ -93,6 +93,40 @@ class Instance:
             )
         return self.pose @ self.concept.function("link", link)(self.p, self.q)
 
+    # -- geometry
+    def mesh(self, resolution: int = 64) -> Any:
+        """A ``trimesh.Trimesh`` of the whole instance in the world, at its joint values."""
+        from grace_dsl.runtime.shapes import instance_mesh
+
+        return instance_mesh(self, None, resolution)
+
+    def link_mesh(self, link: str, resolution: int = 64) -> Any:
+        """The mesh of one link's shapes, in the world."""
+        from grace_dsl.runtime.shapes import instance_mesh
+
+        self.link_pose(link)  # validates the name
+        return instance_mesh(self, link, resolution)
+
+    def sdf(self, points: Any) -> np.ndarray:
+        """(N,) signed distances of world points to the instance, negative inside."""
+        from grace_dsl.runtime.shapes import instance_sdf
+
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+            raise ParameterError(f"points must be a finite (N, 3) array, got shape {pts.shape}")
+        return instance_sdf(self, pts)
+
+    def sample_surface(self, n: int, seed: int = 0) -> np.ndarray:
+        """(n, 3) world points spread by area over the outer surface (deterministic by seed)."""
+        return self.sample_surface_with_normals(n, seed)[0]
+
+    def sample_surface_with_normals(self, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        from grace_dsl.runtime.shapes import instance_samples
+
+        if n < 0:
+            raise ParameterError(f"n must be non-negative, got {n}")
+        return instance_samples(self, n, seed)
+
     # -- grasps
     def _grasp_entry(self, name: str) -> dict[str, Any]:
         if name not in self.concept.grasps:

@@ -4,7 +4,6 @@ values equal the runtime's link functions (times each link's frame offset) to 1e
 from __future__ import annotations
 
 import json
-import logging
 import math
 from pathlib import Path
 
@@ -15,6 +14,8 @@ import pytest
 
 import grace_dsl as eac
 from grace_dsl.cli.eacc import main
+from grace_dsl.compiler.build import front_end
+from grace_dsl.compiler.resolve import stdlib_dir
 from grace_dsl.export import build_model, export_mjcf, export_urdf
 from grace_dsl.export.common import quat_wxyz, rpy
 from grace_dsl.export.model import ExportModel, Joint
@@ -32,11 +33,18 @@ def concepts() -> dict[str, eac.Concept]:
     return out
 
 
-NAMES = ["CurveHandle", "SunkenDoor", "Knob", "Cabinet"]
+def _concept_names() -> list[str]:
+    """Every non-primitive concept of the library and of the test file (front end only)."""
+    prog, _, diags = front_end([stdlib_dir(), HERE / "cabinet.eac"])
+    assert not diags, diags
+    return sorted(n for n, e in prog.concepts.items() if e.decl.kind != "primitive")
+
+
+NAMES = _concept_names()
 
 
 def test_every_library_concept_is_covered(concepts) -> None:  # type: ignore[no-untyped-def]
-    assert set(concepts) == set(NAMES)
+    assert set(concepts) == set(NAMES) and {"SunkenDoor", "Knob", "Cabinet"} <= set(NAMES)
 
 
 def _random_pose(rng: np.random.Generator) -> np.ndarray:
@@ -156,14 +164,15 @@ def test_joint_kinds_and_limits(concepts) -> None:  # type: ignore[no-untyped-de
     assert (spin.damping, spin.friction) == (0.5, 0.1)
 
 
-def test_geoms_native_meshes_union_and_skipped_difference(concepts, tmp_path, caplog) -> None:  # type: ignore[no-untyped-def]
+def test_geoms_native_meshes_union_and_difference(concepts, tmp_path) -> None:  # type: ignore[no-untyped-def]
     inst = concepts["Cabinet"].instantiate()
-    with caplog.at_level(logging.WARNING):
-        model = build_model(inst)
+    model = build_model(inst)
     base = {g.name: g for g in model.root.geoms}
-    assert set(base) == {"body", "a", "b", "ring"}  # the union's operands; the difference skipped
-    assert any("holed" in w and "manifold3d" in w for w in model.warnings)
-    assert "holed" in caplog.text
+    assert set(base) == {"body", "a", "b", "holed", "ring"}  # a union becomes its operands
+    holed = base["holed"]  # a 60 mm cube minus a 10 mm-radius cylinder through it
+    assert holed.primitive == "mesh" and holed.mesh.is_watertight
+    assert holed.mesh.volume == pytest.approx(0.06**3 - math.pi * 0.01**2 * 0.06, rel=2e-3)
+    assert model.warnings == ()
     urdf = export_urdf(inst, tmp_path / "c.urdf")
     assert 'filename="c_meshes/ring.obj"' in urdf and (tmp_path / "c_meshes/ring.obj").is_file()
     assert 'filename="c_meshes/drawer' not in urdf  # drawer geoms are named by shape

@@ -1,0 +1,237 @@
+"""The shapes of an instance: primitives placed on links, and their unions and differences.
+
+Shapes that are operands of a ``union`` or ``difference`` are building blocks, not geometry of
+their own; only the outermost shapes of a link count. A composite's ``at`` moves its operands with
+it: an operand's pose relative to its link is applied in the composite's frame.
+
+Two views of the same tree: *pieces* (solids with meshes, at q = 0 in the concept frame: a union
+becomes its operands, a difference one boolean mesh, which needs ``manifold3d``) for meshes and
+exports, and the *signed distance* (min over a union, max(a, -b) for a difference: exact outside
+a union, a bound elsewhere that is exact on the surface) for fitting and containment.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import trimesh
+
+from grace_dsl.geometry import primitive_mesh, primitive_sdf
+
+if TYPE_CHECKING:
+    from grace_dsl.runtime.instance import Instance
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One solid: a primitive (``params`` in SI) or a boolean mesh (``primitive == "mesh"``)."""
+
+    name: str
+    link: str
+    primitive: str
+    params: Mapping[str, Any]
+    pose: np.ndarray  # concept frame at q = 0 <- piece frame
+    mesh: trimesh.Trimesh  # in the piece frame
+
+
+class ShapeTree:
+    """Evaluates an instance's shapes at q = 0 and expands composites."""
+
+    def __init__(self, inst: Instance, resolution: int = 64):
+        self.inst, self.resolution = inst, resolution
+        self.shapes: dict[str, Mapping[str, Any]] = {
+            s["name"]: s for s in inst.concept.entry["shapes"]
+        }
+        self.q0 = np.zeros_like(inst.q)
+        self._links: dict[str, np.ndarray] = {}
+        self._evaluated: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def outermost(self, link: str | None = None) -> list[str]:
+        """The shapes that are not operands of another (on ``link``, or on every link)."""
+        consumed = {op for s in self.shapes.values() for op in s["operands"]}
+        return [
+            n
+            for n, s in self.shapes.items()
+            if n not in consumed and (link is None or s["link"] == link)
+        ]
+
+    def link_pose(self, link: str) -> np.ndarray:
+        if link not in self._links:
+            fn = self.inst.concept.function("link", link)
+            self._links[link] = np.asarray(fn(self.inst.p, self.q0), float)
+        return self._links[link]
+
+    def evaluate(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in self._evaluated:
+            pose, args = self.inst.concept.function("shape", name)(self.inst.p, self.q0)
+            self._evaluated[name] = (np.asarray(pose, float), np.asarray(args, float).reshape(-1))
+        return self._evaluated[name]
+
+    def relative(self, name: str) -> np.ndarray:
+        """The shape's pose relative to its link (what its ``at`` says)."""
+        return np.linalg.solve(self.link_pose(self.shapes[name]["link"]), self.evaluate(name)[0])
+
+    def placement(self, name: str) -> np.ndarray:
+        """Where an outermost shape sits: its link's pose at q = 0 times its ``at``."""
+        return self.link_pose(self.shapes[name]["link"]) @ self.relative(name)
+
+    def params(self, name: str) -> dict[str, Any]:
+        _, args = self.evaluate(name)
+        out: dict[str, Any] = {}
+        i = 0
+        for a in self.shapes[name]["args"]:
+            size = a["size"]
+            out[a["name"]] = float(args[i]) if size == 1 else tuple(map(float, args[i : i + size]))
+            i += size
+        return out
+
+    # -- pieces ------------------------------------------------------------------------------
+    def pieces(self, name: str, place: np.ndarray, warnings: list[str]) -> list[Piece]:
+        """The solids of shape ``name`` placed at ``place`` (concept frame, q = 0)."""
+        s = self.shapes[name]
+        if s["primitive"] == "union":
+            return [
+                p
+                for op in s["operands"]
+                for p in self.pieces(op, place @ self.relative(op), warnings)
+            ]
+        if s["primitive"] == "difference":
+            return self._difference(name, place, warnings)
+        params = self.params(name)
+        mesh = primitive_mesh(s["primitive"], params, resolution=self.resolution)
+        return [Piece(name, s["link"], s["primitive"], params, place, mesh)]
+
+    def _difference(self, name: str, place: np.ndarray, warnings: list[str]) -> list[Piece]:
+        try:
+            solids = [
+                self._solid(op, place @ self.relative(op), warnings)
+                for op in self.shapes[name]["operands"]
+            ]
+            result = trimesh.boolean.difference(solids, engine="manifold")
+        except (ImportError, ValueError) as exc:
+            warnings.append(f"shape {name} (a difference) skipped: {exc}")
+            return []
+        result.apply_transform(np.linalg.inv(place))
+        return [Piece(name, self.shapes[name]["link"], "mesh", {}, place, result)]
+
+    def _solid(self, name: str, place: np.ndarray, warnings: list[str]) -> trimesh.Trimesh:
+        meshes = [p.mesh.copy().apply_transform(p.pose) for p in self.pieces(name, place, warnings)]
+        merged = trimesh.util.concatenate(meshes)
+        assert isinstance(merged, trimesh.Trimesh)
+        return merged
+
+    # -- signed distance ---------------------------------------------------------------------
+    def sdf(self, name: str, place: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Signed distance of shape ``name`` placed at ``place`` to ``points`` (same frame)."""
+        s = self.shapes[name]
+        ops = s["operands"]
+        if s["primitive"] in ("union", "difference"):
+            dists = [self.sdf(op, place @ self.relative(op), points) for op in ops]
+            if s["primitive"] == "union":
+                return np.min(dists, axis=0)
+            rest = np.min(dists[1:], axis=0)
+            return np.maximum(dists[0], -rest)
+        local = _apply(np.linalg.inv(place), points)
+        return primitive_sdf(s["primitive"], self.params(name), local)
+
+
+def _apply(m: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ m[:3, :3].T + m[:3, 3]
+
+
+# -- the whole instance, in the world at its joint values ------------------------------------
+
+
+def _motions(tree: ShapeTree) -> dict[str, np.ndarray]:
+    """World pose change of each link from q = 0 to the instance's joints: world <- q0 frame."""
+    inst = tree.inst
+    return {
+        link: inst.pose
+        @ np.asarray(inst.concept.function("link", link)(inst.p, inst.q))
+        @ np.linalg.inv(tree.link_pose(link))
+        for link in inst.concept.links
+    }
+
+
+def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64) -> trimesh.Trimesh:
+    """One mesh of every outermost shape (of ``link``, or of all links), in the world."""
+    tree = ShapeTree(inst, resolution)
+    motions = _motions(tree)
+    warnings: list[str] = []
+    meshes = [
+        piece.mesh.copy().apply_transform(motions[piece.link] @ piece.pose)
+        for name in tree.outermost(link)
+        for piece in tree.pieces(name, tree.placement(name), warnings)
+    ]
+    if warnings:
+        raise ValueError("; ".join(warnings))
+    merged = trimesh.util.concatenate(meshes) if meshes else trimesh.Trimesh()
+    assert isinstance(merged, trimesh.Trimesh)
+    return merged
+
+
+def instance_sdf(inst: Instance, points: np.ndarray) -> np.ndarray:
+    """Signed distance of world ``points`` (N, 3) to the instance: the union of its shapes."""
+    tree = ShapeTree(inst)
+    motions = _motions(tree)
+    dists = [
+        tree.sdf(
+            name,
+            tree.placement(name),
+            _apply(np.linalg.inv(motions[tree.shapes[name]["link"]]), points),
+        )
+        for name in tree.outermost()
+    ]
+    return np.min(dists, axis=0) if dists else np.full(len(points), np.inf)
+
+
+def instance_samples(
+    inst: Instance, n: int, seed: int, tol: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` world points spread by area over the instance's outer surface, and their normals.
+
+    Each piece's surface is sampled exactly (analytically for primitives); points that fall
+    inside another shape, or on a face pressed against another shape's, are not on the outer
+    surface and are rejected, so draws repeat (with the same generator, hence
+    deterministically) until ``n`` remain.
+    """
+    tree = ShapeTree(inst)
+    motions = _motions(tree)
+    warnings: list[str] = []
+    pieces = [
+        p for name in tree.outermost() for p in tree.pieces(name, tree.placement(name), warnings)
+    ]
+    if not pieces:
+        raise ValueError(f"{inst.concept.name} has no shapes to sample")
+    areas = np.array([p.mesh.area for p in pieces])
+    rng = np.random.default_rng(seed)
+    kept_pts: list[np.ndarray] = []
+    kept_nrm: list[np.ndarray] = []
+    total = 0
+    for _ in range(50):
+        counts = rng.multinomial(int(1.3 * (n - total)) + 16, areas / areas.sum())
+        for piece, k in zip(pieces, counts):
+            pts, nrm = _piece_samples(piece, int(k), rng)
+            world = motions[piece.link] @ piece.pose
+            pts, nrm = _apply(world, pts), nrm @ world[:3, :3].T
+            # outside every other shape, and not on a face that touches another shape's face
+            outer = (instance_sdf(inst, pts) > -tol) & (instance_sdf(inst, pts + 1e-6 * nrm) > 0)
+            kept_pts.append(pts[outer])
+            kept_nrm.append(nrm[outer])
+            total += int(outer.sum())
+        if total >= n:
+            break
+    order = rng.permutation(total)[:n]
+    return np.concatenate(kept_pts)[order], np.concatenate(kept_nrm)[order]
+
+
+def _piece_samples(piece: Piece, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    from grace_dsl.geometry import sample_surface
+
+    if piece.primitive != "mesh":
+        return sample_surface(piece.primitive, piece.params, k, rng)
+    pts, faces = trimesh.sample.sample_surface(piece.mesh, k, seed=int(rng.integers(2**31)))
+    return np.asarray(pts), np.asarray(piece.mesh.face_normals[faces])
