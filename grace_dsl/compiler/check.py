@@ -441,6 +441,10 @@ class _ConceptChecker:
         if ERR in (got, want) or got == want:
             return
         if got.kind == "string":
+            if want.kind == "choice" and not isinstance(te.const, str):
+                self.err("E227", "a choice's value is one of its options, written out", span,
+                         'e.g. `hand: "left"`; to depend on a condition, give the part a bool')
+                return
             if want.kind == "choice":
                 assert isinstance(te.const, str)
                 if te.const not in want.choices:

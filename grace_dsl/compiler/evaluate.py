@@ -106,6 +106,8 @@ class Evaluator:
         return self._multiply(lt, a, rt, b)
 
     def _compare(self, op: str, lt: Type, a: Any, rt: Type, b: Any) -> Any:
+        if isinstance(a, str) and isinstance(b, str):  # a part's choice bound to an option
+            return self.b.boolean((a == b) == (op == "=="))
         if isinstance(a, str) or isinstance(b, str):
             (choice_t, index), text = ((lt, a), b) if isinstance(b, str) else ((rt, b), a)
             code = self.b.num(float(choice_t.choices.index(text)))

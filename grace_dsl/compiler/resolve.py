@@ -358,13 +358,18 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
             )
             diags.append(error("E107", f"unknown concept `{m.concept}`", m.concept_span, hint))
         if isinstance(m, ast.Action):
-            if m.joint is not None and m.joint not in joints and m.joint not in dropped:
+            known_joint = (
+                m.joint is None
+                or m.joint in joints
+                or ("." in m.joint and m.joint in all_joints(prog, c))
+            )
+            if not known_joint and m.joint is not None and m.joint.split(".")[0] not in dropped:
                 diags.append(
                     error(
                         "E109",
                         f"`{m.joint}` is not a joint of `{c.name}`",
                         m.joint_span,
-                        did_you_mean(m.joint, joints),
+                        did_you_mean(m.joint, all_joints(prog, c)),
                     )
                 )
             for g in m.using:
@@ -381,14 +386,26 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     return diags
 
 
-def all_grasps(prog: Program, c: ast.Concept, prefix: str = "", depth: int = 0) -> list[str]:
+def all_grasps(prog: Program, c: ast.Concept) -> list[str]:
     """Every grasp reachable in a concept's part tree, by qualified name."""
+    return _reachable(prog, c, ast.Grasp)
+
+
+def all_joints(prog: Program, c: ast.Concept) -> list[str]:
+    """Every joint reachable in a concept's part tree, by qualified name (``knob.spin``)."""
+    return _reachable(prog, c, ast.Joint)
+
+
+def _reachable(
+    prog: Program, c: ast.Concept, kind: type, prefix: str = "", depth: int = 0
+) -> list[str]:
     found: list[str] = []
     for m in flat_members(c):
-        if isinstance(m, ast.Grasp):
-            found.append(prefix + m.name)
+        if isinstance(m, kind):
+            found.append(prefix + m.name)  # type: ignore[union-attr]
         elif isinstance(m, ast.Part) and m.concept in prog.concepts and depth < 16:
-            found += all_grasps(prog, prog.concept(m.concept), f"{prefix}{m.name}.", depth + 1)
+            sub = prog.concept(m.concept)
+            found += _reachable(prog, sub, kind, f"{prefix}{m.name}.", depth + 1)
     return found
 
 

@@ -489,6 +489,20 @@ class _Builder(Transformer):
     def action_using(self, c: list[str]) -> list[str]:
         return c
 
+    def joint_ref(self, c: list[Token]) -> Token:
+        """``hinge`` or a part's joint ``knob.spin``, as one token spanning the whole name."""
+        first, last = c[0], c[-1]
+        return Token(
+            "NAME",
+            ".".join(t.value for t in c),
+            first.start_pos,
+            first.line,
+            first.column,
+            last.end_line,
+            last.end_column,
+            last.end_pos,
+        )
+
     def grasp_ref(self, c: list[Token]) -> str:
         return ".".join(t.value for t in c)
 
@@ -729,12 +743,14 @@ def _blank_declaration(text: str, exc: UnexpectedInput) -> tuple[str, str | None
     end = err + 1
     while end < len(lines) and not _starts_declaration(lines[end]) and not _closes(lines[end]):
         end += 1
+    words = lines[start].split()
+    name = words[1].rstrip(":=({") if len(words) > 1 and words[0] in SYNC_KEYWORDS else None
+    while start > 0 and lines[start - 1].strip().startswith("///"):
+        start -= 1  # its doc comment goes too, or it would document nothing
     region = lines[start:end]
     joined = "\n".join(region)
     if joined.count("{") != joined.count("}") or not joined.strip():
         return None
-    words = region[0].split()
-    name = words[1].rstrip(":=({") if len(words) > 1 and words[0] in SYNC_KEYWORDS else None
     blanked = [" " * len(line) for line in region]
     return "\n".join(lines[:start] + blanked + lines[end:]), name
 

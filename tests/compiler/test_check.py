@@ -135,3 +135,13 @@ def test_more_values_at_the_defaults(tmp_path: Path) -> None:
     assert codes(tmp_path, "param b : bool") == ["E222"]
     assert codes(tmp_path, "param if : scalar = 1") == ["E002"]  # a keyword is never a name
     assert codes(tmp_path, "let v = (inv(trans(1mm, 0, 0)) * (0, 0, 0)).z + 3mm") == []
+
+
+def test_part_choices_bound_to_options(tmp_path: Path) -> None:
+    header = "use handles.{LeverHandle}\n"
+    assert codes(tmp_path, 'part h = LeverHandle(hand: "right")', header) == []
+    computed = (
+        'param s : choice{"l", "r"} = "l"  part h = LeverHandle(hand: if s == "l" '
+        'then "left" else "right")'
+    )
+    assert codes(tmp_path, computed, header) == ["E227"]

@@ -116,3 +116,13 @@ def test_unreadable_files(tmp_path: Path) -> None:
     bad.write_bytes(b"concept \xff\xfe {}")
     _, diags = resolve([bad, tmp_path / "missing.eac"])
     assert codes(diags) == ["E006", "E006"]
+
+
+def test_actions_may_move_a_part_joint(tmp_path: Path) -> None:
+    text = (
+        "use knobs.{RotaryDial}\nconcept H {\n    part dial = RotaryDial()\n"
+        "    action turn_on = turn along dial.spin using dial.grip\n"
+        "    action bad = turn along dial.spn\n}\n"
+    )
+    _, diags = resolve([write(tmp_path, "h.eac", text)])
+    assert codes(diags) == ["E109"] and diags[0].hint == "did you mean `dial.spin`?"
