@@ -13,7 +13,14 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from grace_dsl.cli.output import console, fmt_value, print_json, print_table, print_text
+from grace_dsl.cli.output import (
+    build_progress,
+    console,
+    fmt_value,
+    print_json,
+    print_table,
+    print_text,
+)
 from grace_dsl.compiler.build import build, export_library, front_end
 from grace_dsl.compiler.resolve import stdlib_dir
 from grace_dsl.lang.diagnostics import Diagnostic, has_errors, render_all
@@ -145,25 +152,14 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    out = console(stderr=True)
-    if out.is_terminal and not args.json:
-        from rich.progress import Progress
-
-        with Progress(console=out, transient=True) as bar:
-            task = bar.add_task("compiling", total=None)
-
-            def progress(file: str, i: int, n: int) -> None:
-                bar.update(task, total=n, completed=i, description=f"compiling {Path(file).name}")
-
-            result = build(
-                args.paths,
-                args.cache_dir,
-                args.search_path,
-                use_native=not args.no_native,
-                progress=progress,
-            )
-    else:
-        result = build(args.paths, args.cache_dir, args.search_path, use_native=not args.no_native)
+    with build_progress(not args.json) as progress:
+        result = build(
+            args.paths,
+            args.cache_dir,
+            args.search_path,
+            use_native=not args.no_native,
+            progress=progress,
+        )
     diags = list(result.diagnostics)
     if result.ok and args.output is not None:
         diags += export_library(result, args.output)
@@ -241,7 +237,10 @@ def _library(paths: Sequence[str], search_path: Sequence[str]) -> Any:
     from grace_dsl.runtime.library import compile_paths
 
     try:
-        return compile_paths(list(paths) or [stdlib_dir()], search_path=search_path)
+        with build_progress() as progress:
+            return compile_paths(
+                list(paths) or [stdlib_dir()], search_path=search_path, progress=progress
+            )
     except CompileError as exc:
         sys.stderr.write(str(exc) + "\n")
         return None

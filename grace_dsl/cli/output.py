@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 from rich.console import Console
@@ -13,6 +15,24 @@ from rich.table import Table
 
 def console(stderr: bool = False) -> Console:
     return Console(stderr=stderr, highlight=False, soft_wrap=True)
+
+
+@contextmanager
+def build_progress(enabled: bool = True) -> Iterator[Callable[[str, int, int], None] | None]:
+    """A progress callback for builds: a transient bar on a terminal, nothing when piped."""
+    out = console(stderr=True)
+    if not (enabled and out.is_terminal):
+        yield None
+        return
+    from rich.progress import Progress
+
+    with Progress(console=out, transient=True) as bar:
+        task = bar.add_task("compiling concepts", total=None)
+
+        def progress(file: str, done: int, total: int) -> None:
+            bar.update(task, total=total, completed=done, description=f"compiled {Path(file).name}")
+
+        yield progress
 
 
 def print_json(data: Any) -> None:

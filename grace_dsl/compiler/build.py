@@ -17,6 +17,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -85,14 +86,22 @@ def build(
     result.cache_dir = cache
     keys = _unit_keys(prog)
     files = [f for f in prog.files if _concepts_of(prog, f)]
-    for i, file in enumerate(files):
-        if progress is not None:
-            progress(file, i, len(files))
-        unit_dir = cache / "units" / keys[file]
-        if not (unit_dir / "unit.json").is_file():
-            _write_unit(unit_dir, prog, checked, file, keys[file], use_native)
-            result.rebuilt.append(file)
-        result.units.append(load_unit(unit_dir))
+    missing = [f for f in files if not (cache / "units" / keys[f] / "unit.json").is_file()]
+    # Lowering holds the GIL but the C compiler runs in a subprocess, so a thread per core
+    # overlaps one unit's compilation with the next one's lowering.
+    with ThreadPoolExecutor(max_workers=max(1, min(len(missing), os.cpu_count() or 1))) as pool:
+        jobs = {
+            pool.submit(
+                _write_unit, cache / "units" / keys[f], prog, checked, f, keys[f], use_native
+            ): f
+            for f in missing
+        }
+        for done, job in enumerate(as_completed(jobs)):
+            job.result()  # re-raise a failure here
+            if progress is not None:
+                progress(jobs[job], done + 1, len(missing))
+    result.rebuilt = missing
+    result.units = [load_unit(cache / "units" / keys[f]) for f in files]
     return result
 
 

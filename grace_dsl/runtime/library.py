@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from grace_dsl.compiler import native
-from grace_dsl.compiler.build import BuildResult, Unit, build, load_unit
+from grace_dsl.compiler.build import BuildResult, Progress, Unit, build, load_unit
 from grace_dsl.lang.diagnostics import render_all
 from grace_dsl.runtime.concept import ParamSpec, pack_params, suggest
 from grace_dsl.runtime.errors import CompileError, UnknownNameError
@@ -115,22 +115,24 @@ def compile_paths(
     paths: Sequence[str | Path],
     cache_dir: Path | None = None,
     search_path: Sequence[str | Path] = (),
+    progress: Progress | None = None,
 ) -> Library:
     """Compile .eac files or directories (and what they import) into a ``Library``.
 
     Raises ``CompileError`` carrying every diagnostic when the sources have errors.
+    ``progress(file, done, total)`` is called as each file that was not cached is compiled.
     """
-    result = build(paths, cache_dir, search_path)
+    result = build(paths, cache_dir, search_path, progress=progress)
     if not result.ok:
         raise CompileError(render_all(result.diagnostics, result.sources), result.diagnostics)
     return Library(result.units, result)
 
 
-def load_library(cache_dir: Path | None = None) -> Library:
+def load_library(cache_dir: Path | None = None, progress: Progress | None = None) -> Library:
     """The standard concept library, compiled once and cached."""
     from grace_dsl.compiler.resolve import stdlib_dir
 
-    return compile_paths([stdlib_dir()], cache_dir)
+    return compile_paths([stdlib_dir()], cache_dir, progress=progress)
 
 
 def load_artifact(directory: str | Path) -> Library:
