@@ -257,9 +257,8 @@ def test_library_is_clean() -> None:
 # ---- recombined members -----------------------------------------------------------------------
 # Realistic declarations that refer to each other; every example keeps all parameters and the
 # part ``h`` and adds a random selection of the rest in random order, so that many examples get
-# past type checking into the evaluation at the defaults.  A free grasp parameter whose range
-# uses an earlier one is left out while that bug is open (see the xfail test below); put
-# ``grasp slid2(t in [0mm, w], u in [t, w]) = trans(t, u, 0)`` into EXTRA once it is fixed.
+# past type checking into the evaluation at the defaults.  ``slid2`` bounds a free grasp
+# parameter by another (it crashed once; now a diagnostic).
 
 BASE = [
     "param w : length in [10mm, 500mm] = 100mm",
@@ -273,6 +272,7 @@ BASE = [
     "part h = CurveHandle(r_in: d, r_out: d + 8mm) at trans(0, 0, half)",
 ]
 EXTRA = [
+    "grasp slid2(t in [0mm, w], u in [t, w]) = trans(t, u, 0)",
     'require w > d "wide enough"',
     'require side == "left" or flip',
     "require v.x < w and n >= 1",
