@@ -442,8 +442,12 @@ class _ConceptChecker:
             return
         if got.kind == "string":
             if want.kind == "choice" and not isinstance(te.const, str):
-                self.err("E227", "a choice's value is one of its options, written out", span,
-                         'e.g. `hand: "left"`; to depend on a condition, give the part a bool')
+                self.err(
+                    "E227",
+                    "a choice's value is one of its options, written out",
+                    span,
+                    'e.g. `hand: "left"`; to depend on a condition, give the part a bool',
+                )
                 return
             if want.kind == "choice":
                 assert isinstance(te.const, str)
@@ -479,8 +483,16 @@ class _ConceptChecker:
             return
         self.err("E202", f"expected {_a(want)}, found {_a(got)}", span)
 
-    def _unify(self, a: TE, b: TE, span: ast.Span, what: str) -> Type:
-        """The common type of two operands that must agree (+, -, comparisons, branches)."""
+    def _unify(
+        self,
+        a: TE,
+        b: TE,
+        span: ast.Span,
+        what: str,
+        spans: tuple[ast.Span, ast.Span] | None = None,
+    ) -> Type:
+        """The common type of two operands that must agree (+, -, comparisons, branches);
+        ``spans`` locate the operands, so a bare number's error points at the number."""
         ta, tb = a.type, b.type
         if ERR in (ta, tb):
             return ERR
@@ -498,10 +510,11 @@ class _ConceptChecker:
             if bare_vs_unit and other is not None and other.dim in (LENGTH, ANGLE):
                 assert bare is not None
                 unit = "mm" if other.dim == LENGTH else "deg"
+                where = span if spans is None else spans[0] if bare is a else spans[1]
                 self.err(
                     "E204",
                     f"a bare number in {what} with {_a(T.num(other.dim))}",
-                    span,
+                    where,
                     f"write the unit, e.g. `{_example(bare.const, unit)}`",
                 )
                 return ERR
@@ -684,7 +697,7 @@ class _ConceptChecker:
             self.err("E227", "strings can only be compared with a choice parameter", e.span)
             return TE(ERR)
         if e.op in ("+", "-"):
-            t = self._unify(a, b, e.span, f"`{e.op}`")
+            t = self._unify(a, b, e.span, f"`{e.op}`", (e.left.span, e.right.span))
             if ta.kind not in ("num", "vec") and t is not ERR:
                 self.err(
                     "E202", f"cannot add or subtract {_a(ta)}", e.span, "compose poses with `*`"
@@ -714,7 +727,7 @@ class _ConceptChecker:
                     e.span,
                 )
                 return TE(ERR)
-            self.coerce(text, choice, e.span)
+            self.coerce(text, choice, (e.right if tb.kind == "string" else e.left).span)
             return TE(T.BOOL)
         if ta.kind == "bool" and tb.kind == "bool" and e.op in ("==", "!="):
             return TE(T.BOOL)
@@ -726,7 +739,7 @@ class _ConceptChecker:
                 "compare components, e.g. `v.x < 1mm`" if "vec" in (ta.kind, tb.kind) else None,
             )
             return TE(ERR)
-        self._unify(a, b, e.span, f"`{e.op}`")
+        self._unify(a, b, e.span, f"`{e.op}`", (e.left.span, e.right.span))
         return TE(T.BOOL)
 
     def _power(self, e: ast.Binary, a: TE, b: TE) -> TE:
