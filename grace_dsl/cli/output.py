@@ -12,6 +12,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from grace_dsl.compiler.types import format_si
+
 
 def console(stderr: bool = False) -> Console:
     return Console(stderr=stderr, highlight=False, soft_wrap=True)
@@ -71,17 +73,9 @@ def print_text(text: str, style: str | None = None) -> None:
 
 
 def fmt_value(value: Any, dim: str | None) -> str:
-    """An SI value as people read it: millimetres for lengths, degrees for angles."""
-    import math
-
+    """An SI value as people read it (``format_si``); ``-`` for none, quotes for a choice."""
     if value is None:
         return "-"
-    if isinstance(value, (list, tuple)):
-        return "(" + ", ".join(fmt_value(v, dim) for v in value) + ")"
     if isinstance(value, str):
         return f'"{value}"'
-    if dim == "length":
-        return f"{value * 1000:g}mm"
-    if dim == "angle":
-        return f"{math.degrees(value):g}deg"
-    return f"{value:g}"
+    return format_si(value, dim)

@@ -8,6 +8,9 @@ length), but it keeps ``length + angle`` and ``angle + 3`` from passing unnotice
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -92,11 +95,21 @@ UNIT_FACTORS: dict[str, tuple[Dim, int, int, bool]] = {
 }
 
 
-def unit_scale(unit: str) -> float:
-    import math
+def format_si(value: Any, dim: object) -> str:
+    """An SI value (or vector) as people read it: mm for lengths, degrees for angles.
 
-    _, num_, den, with_pi = UNIT_FACTORS[unit]
-    return num_ / den * (math.pi if with_pi else 1.0)
+    ``dim`` is a ``Dim`` or its name ("length", "angle", ...), so the checker, the runtime's
+    errors and the command line all print values the same way."""
+    name = str(dim)
+    parts = []
+    for v in np.atleast_1d(np.asarray(value, dtype=float)):
+        if name == "length":
+            parts.append(f"{v * 1000:g}mm")
+        elif name == "angle":
+            parts.append(f"{np.degrees(v):g}deg")
+        else:
+            parts.append(f"{v:g}")
+    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
 
 
 def param_type(name: str, unit: str | None) -> Type | None:

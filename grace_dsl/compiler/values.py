@@ -16,7 +16,7 @@ import numpy as np
 from grace_dsl.compiler.backends import NUMPY
 from grace_dsl.compiler.evaluate import Evaluator
 from grace_dsl.compiler.resolve import flat_members
-from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
+from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type, format_si
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, error
 
@@ -103,10 +103,10 @@ class _ValueChecker:
                 dim = sub.param_types[a.name].dim
                 self.err(
                     "E209",
-                    f"`{a.name}` = {_fmt_any(value, dim)} at the defaults lies "
+                    f"`{a.name}` = {format_si(value, dim)} at the defaults lies "
                     f"outside the range of {target}",
                     a.value.span,
-                    f"{target}.{a.name} is in [{_fmt_any(lo, dim)}, {_fmt_any(hi, dim)}]",
+                    f"{target}.{a.name} is in [{format_si(lo, dim)}, {format_si(hi, dim)}]",
                 )
         sub_ev = evaluator_at(sub.decl, values, self.done, self.types)
         if sub_ev is None:
@@ -166,7 +166,7 @@ class _ValueChecker:
                     "E209",
                     f"the default of `{name}` lies outside its range",
                     p.default.span,
-                    f"the range is [{_fmt_any(lo, t.dim)}, {_fmt_any(hi, t.dim)}]",
+                    f"the range is [{format_si(lo, t.dim)}, {format_si(hi, t.dim)}]",
                 )
             out.defaults[name] = value
 
@@ -177,7 +177,7 @@ class _ValueChecker:
         if isinstance(m, ast.Require):
             if not bool(ev(m.cond)):
                 used = sorted({n.id for n in ast.names_in(m.cond)} & set(ev.env) - {"pi"})
-                shown = ", ".join(f"{n} = {_fmt_any(ev.env[n], self._dim(n))}" for n in used)
+                shown = ", ".join(f"{n} = {format_si(ev.env[n], self._dim(n))}" for n in used)
                 self.err(
                     "E210",
                     "this requirement is false at the defaults"
@@ -208,7 +208,7 @@ class _ValueChecker:
             return
         lo, hi = float(ev(j.limits.lo)), float(ev(j.limits.hi))
         dim = ANGLE if j.kind == "revolute" else LENGTH
-        shown = f"[{_fmt(lo, dim)}, {_fmt(hi, dim)}]"
+        shown = f"[{format_si(lo, dim)}, {format_si(hi, dim)}]"
         if lo > hi:
             self.err(
                 "E208",
@@ -233,7 +233,7 @@ class _ValueChecker:
                 self.err(
                     "E211",
                     f"the range of `{fp.name}` is empty at the defaults "
-                    f"([{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}])",
+                    f"([{format_si(float(lo), dim)}, {format_si(float(hi), dim)}])",
                     fp.span,
                     "its lower bound must not exceed its upper bound at the defaults",
                 )
@@ -245,7 +245,7 @@ class _ValueChecker:
                     "E209",
                     f"the default of `{fp.name}` lies outside its range at the defaults",
                     fp.default.span,
-                    f"the range is [{_fmt(float(lo), dim)}, {_fmt(float(hi), dim)}]",
+                    f"the range is [{format_si(float(lo), dim)}, {format_si(float(hi), dim)}]",
                 )
         sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy, ev.parts)
         self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
@@ -318,17 +318,3 @@ def _within(value: Any, lo: Any, hi: Any) -> bool:
 class _Cycle(Exception):
     def __init__(self, names: list[str]):
         self.names = names
-
-
-def _fmt(value: float, dim: Dim) -> str:
-    if dim == LENGTH:
-        return f"{value * 1000:g}mm"
-    if dim == ANGLE:
-        return f"{np.degrees(value):g}deg"
-    return f"{value:g}"
-
-
-def _fmt_any(value: Any, dim: Dim) -> str:
-    arr = np.atleast_1d(np.asarray(value, dtype=float))
-    parts = [_fmt(float(v), dim) for v in arr]
-    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
 
 Evaluate = Callable[..., Any]
@@ -91,8 +92,8 @@ class ParamSpec:
         lo, hi = np.atleast_1d(self.lo), np.atleast_1d(self.hi)
         if np.any(arr < lo - 1e-12) or np.any(arr > hi + 1e-12):
             raise ParameterError(
-                f"{self.name} = {_show(arr, self.dim)} is outside its range "
-                f"[{_show(lo, self.dim)}, {_show(hi, self.dim)}] (values are in SI units: "
+                f"{self.name} = {format_si(arr, self.dim)} is outside its range "
+                f"[{format_si(lo, self.dim)}, {format_si(hi, self.dim)}] (values are in SI units: "
                 f"{_SI_UNITS.get(self.dim or '', 'no unit')})"
             )
 
@@ -106,17 +107,6 @@ class ParamSpec:
 
 
 _SI_UNITS = {"length": "metres", "angle": "radians"}
-
-
-def _show(arr: np.ndarray, dim: str | None) -> str:
-    vals = np.atleast_1d(arr)
-    if dim == "length":
-        parts = [f"{v * 1000:g}mm" for v in vals]
-    elif dim == "angle":
-        parts = [f"{np.degrees(v):g}deg" for v in vals]
-    else:
-        parts = [f"{v:g}" for v in vals]
-    return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
 
 
 def suggest(name: str, known: Any) -> str:
