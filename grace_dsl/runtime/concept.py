@@ -6,7 +6,6 @@ The schema comes from the manifest; evaluation goes through the fastest evaluato
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -14,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.compiler.types import format_si
+from grace_dsl.lang.diagnostics import closest
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
 
 Evaluate = Callable[..., Any]
@@ -110,8 +110,9 @@ _SI_UNITS = {"length": "metres", "angle": "radians"}
 
 
 def suggest(name: str, known: Any) -> str:
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
-    return f"; did you mean {close[0]!r}?" if close else f"; known: {', '.join(known)}"
+    """The tail of an unknown-name error: the likely name, or every known one."""
+    match = closest(name, known)
+    return f"; did you mean {match!r}?" if match else f"; known: {', '.join(known)}"
 
 
 def pack_params(
