@@ -24,6 +24,9 @@ from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 
 ERR = Type("error")
 JOINT_KINDS = ("revolute", "prismatic", "continuous", "fixed")
+# How the hand touches the part: pinch closes the fingers on it; hook slides the closed fingers
+# behind it and pulls; push and press lean the closed fingertips against a face or a button.
+GRASP_MODES = ("pinch", "hook", "push", "press")
 VERBS = {  # verb -> default sense along a joint
     "pull": "opening",
     "push": "closing",
@@ -411,6 +414,14 @@ class _ConceptChecker:
                     f"the gripper width is a length, not {_a(te.type)}",
                     g.width.span,
                     "e.g. `width r_out - r_in` or `width 30mm`",
+                )
+        if g.mode is not None and g.mode not in GRASP_MODES:
+            self._not_one_of("E232", "grasp mode", g.mode, g.mode_span, GRASP_MODES)
+        if g.about is not None:
+            te = self.expr(g.about)
+            if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
+                self.err(
+                    "E230", f"a symmetry axis is a 3-vector, not {_a(te.type)}", g.about.span
                 )
         self.free_types[g.name] = free
         self.scope = {}

@@ -74,6 +74,8 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
         )
         if g.width is not None:
             add(fn_key("grasp_width", gname), [("p", p)], [("width", g.width)])
+        if g.axis is not None:
+            add(fn_key("grasp_axis", gname), [("p", p), ("g", gv)], [("axis", _vec(g.axis))])
     x = ca.SX.sym("x", 3)
     for aname, a in low.actions.items():
         add(

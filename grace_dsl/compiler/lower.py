@@ -72,6 +72,8 @@ class GraspInfo:
     width: Any  # backend value or None
     doc: str
     source: ast.Grasp
+    mode: str = "pinch"
+    axis: Any = None  # the symmetry axis in the grasp frame (3 backend values), or None
 
 
 @dataclass(frozen=True)
@@ -322,8 +324,11 @@ class _Instance:
         sub = Evaluator(self.b, ev.types, {**ev.env, **free_env}, ev.lazy, ev.parts)
         pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
         width = sub(g.width) if g.width is not None else None
+        axis = None
+        if g.symmetric:
+            axis = tuple(sub(g.about)) if g.about is not None else (0.0, 0.0, 1.0)
         self.out.grasps[name] = GraspInfo(
-            name, link, tuple(free), tuple(symbols), pose, width, g.doc, g
+            name, link, tuple(free), tuple(symbols), pose, width, g.doc, g, g.mode or "pinch", axis
         )
 
     def _part(

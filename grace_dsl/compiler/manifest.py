@@ -6,11 +6,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import casadi as ca
 import numpy as np
 import sympy as sp
 
 from grace_dsl.compiler.functions import sympy_matrix
-from grace_dsl.compiler.lower import Lowered, ParamInfo
+from grace_dsl.compiler.lower import GraspInfo, Lowered, ParamInfo
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
 
@@ -68,6 +69,27 @@ def _formula(rows: Any) -> dict[str, str]:
     return {"latex": sp.latex(m), "text": sp.sstr(m.tolist())}
 
 
+def grasp_demands(g: GraspInfo) -> dict[str, Any]:
+    """What a grasp asks of the gripper: whether the fingers must close on the part, and whether
+    the whole orientation matters or only the approach direction (a grasp symmetric about its
+    own approach axis +z may spin freely)."""
+    about_approach = g.axis is not None and _constant_axis(g.axis) == (0.0, 0.0, 1.0)
+    return {
+        "closes": g.mode == "pinch",
+        "orientation": "approach" if about_approach else "full",
+    }
+
+
+def _constant_axis(axis: Any) -> tuple[float, ...] | None:
+    """The unit axis when it is a constant, else None (it depends on parameters)."""
+    sx = [ca.SX(a) for a in axis]
+    if not all(a.is_constant() for a in sx):
+        return None
+    v = np.array([float(ca.DM(a)) for a in sx])
+    n = float(np.linalg.norm(v))
+    return tuple(float(x) for x in np.round(v / n, 12)) if n > 0 else None
+
+
 def concept_entry(
     decl: ast.Concept,
     file: str,
@@ -106,6 +128,9 @@ def concept_entry(
                 "doc": g.doc,
                 "free": [{"name": f.name, **_type_fields(f.type)} for f in g.free],
                 "has_width": g.width is not None,
+                "mode": g.mode,
+                "symmetric": g.axis is not None,
+                "demands": grasp_demands(g),
                 "source": source_text(source, g.source.pose.span) if "." not in g.name else "",
                 "formula": _formula(exact.grasps[g.name].pose),
             }

@@ -203,6 +203,10 @@ class FreeParam:
 
 @dataclass(frozen=True)
 class Grasp:
+    """A grasp family: a pose over free parameters, the gripper opening it needs, how the hand
+    touches the part (``by pinch|hook|push|press``) and an optional symmetry axis about which
+    the pose may spin (``symmetric [about v]``; the axis is in the grasp frame)."""
+
     name: str
     free: tuple[FreeParam, ...]
     pose: Expr
@@ -210,6 +214,10 @@ class Grasp:
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    mode: str | None = None  # as written; None means the default, pinch
+    symmetric: bool = False
+    about: Expr | None = None  # the symmetry axis; ``symmetric`` alone means the approach (0, 0, 1)
+    mode_span: Span = _span()
 
 
 @dataclass(frozen=True)

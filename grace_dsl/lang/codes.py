@@ -66,6 +66,7 @@ CODES: dict[str, str] = {
     "E229": "joint range in the wrong unit",
     "E230": "direction must be a 3-vector",
     "E231": "gripper width must be a length",
+    "E232": "unknown grasp mode",
     # build and I/O
     "E301": "cache or output directory not writable",
 }

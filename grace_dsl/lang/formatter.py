@@ -260,8 +260,11 @@ def _segments(d: Decl) -> tuple[list[Segment], bool]:
     if isinstance(d, ast.Joint):
         return _joint_segments(d), False
     if isinstance(d, ast.Grasp):
-        width = [["width ", d.width]] if d.width is not None else []
-        return [_grasp_head(d), [d.pose], *width], False
+        width: list[Segment] = [["width ", d.width]] if d.width is not None else []
+        mode: list[Segment] = [[f"by {d.mode}"]] if d.mode is not None else []
+        about: list[Segment] = [["symmetric about ", d.about]] if d.about is not None else []
+        symmetric = about or ([["symmetric"]] if d.symmetric else [])
+        return [_grasp_head(d), [d.pose], *width, *mode, *symmetric], False
     if isinstance(d, ast.Action):
         return _action_segments(d), False
     if isinstance(d, ast.Use):

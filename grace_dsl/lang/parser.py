@@ -379,19 +379,7 @@ class _Builder(Transformer):
     def joint_decl(self, c: list[Any]) -> ast.Joint:
         docs, name, kind, parent, child, *clauses = c
         trailing = clauses.pop()
-        found: dict[str, _Clause] = {}
-        for cl in clauses:
-            if cl.tag in found:
-                word = {"origin": "at"}.get(cl.tag, cl.tag)
-                self.notes.append(
-                    error(
-                        "E007",
-                        f"joint `{name.value}` gives `{word}` twice",
-                        cl.span,
-                        "keep one; the declaration would otherwise depend on the order",
-                    )
-                )
-            found[cl.tag] = cl
+        found = self._once(clauses, f"joint `{name.value}`")
         return ast.Joint(
             name.value,
             kind.value,
@@ -430,17 +418,42 @@ class _Builder(Transformer):
             free = rest.pop(0).value
         elif rest and rest[0] is None:
             rest.pop(0)
-        pose = rest[0]
-        width = rest[1].value if len(rest) > 1 and rest[1] is not None else None
+        pose, clauses = rest[0], rest[1:]
+        found = self._once(clauses, f"grasp `{name.value}`")
+        width = found["width"].value if "width" in found else None
+        mode = found.get("by")
+        symmetric = found.get("symmetric")
+        last = clauses[-1].span if clauses else self._end(pose)
         return ast.Grasp(
             name.value,
             free,
             pose,
             width,
             self._docs(docs, trailing),
-            self._span(name, width or pose),
+            self._start(name).to(last),
             _tok_span(self.path, name),
+            mode.value.value if mode else None,
+            symmetric is not None,
+            symmetric.value if symmetric else None,
+            _tok_span(self.path, mode.value) if mode else ast.NO_SPAN,
         )
+
+    def _once(self, clauses: list[_Clause], owner: str) -> dict[str, _Clause]:
+        """Clauses by tag; a clause given twice is E007 (the declaration would depend on order)."""
+        found: dict[str, _Clause] = {}
+        for cl in clauses:
+            if cl.tag in found:
+                word = {"origin": "at"}.get(cl.tag, cl.tag)
+                self.notes.append(
+                    error(
+                        "E007",
+                        f"{owner} gives `{word}` twice",
+                        cl.span,
+                        "keep one; the declaration would otherwise depend on the order",
+                    )
+                )
+            found[cl.tag] = cl
+        return found
 
     def grasp_free(self, c: list[Any]) -> _Clause:
         return _Clause("free", tuple(x for x in c if x is not None))
@@ -451,7 +464,15 @@ class _Builder(Transformer):
         return ast.FreeParam(name.value, lo, hi, default, self._span(name, default or hi))
 
     def grasp_width(self, c: list[Any]) -> _Clause:
-        return _Clause("width", c[0])
+        return _Clause("width", c[0], self._start(c[0]))
+
+    def grasp_mode(self, c: list[Token]) -> _Clause:
+        return _Clause("by", c[0], _tok_span(self.path, c[0]))
+
+    def grasp_symmetric(self, c: list[Any]) -> _Clause:
+        word, *about = c
+        span = self._span(word, about[-1]) if about else _tok_span(self.path, word)
+        return _Clause("symmetric", about[0] if about else None, span)
 
     def action_decl(self, c: list[Any]) -> ast.Action:
         docs, name, verb, rule, *rest = c

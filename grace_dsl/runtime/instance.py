@@ -14,6 +14,7 @@ import numpy as np
 
 from grace_dsl.runtime.concept import check_requirements, suggest
 from grace_dsl.runtime.errors import ParameterError, UnknownNameError
+from grace_dsl.runtime.symmetry import spin_to_reference
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
@@ -166,19 +167,33 @@ class Instance:
                 g[i] = v
         return g
 
-    def grasp(self, name: str, **free: float) -> np.ndarray:
-        """The world pose of the gripper for grasp family ``name`` at free parameters ``free``."""
-        g = self._free_vector(name, free)
-        return self.pose @ self.concept.function("grasp", name)(self.p, self.q, g)
+    def grasp(self, name: str, reference: Any = None, **free: float) -> np.ndarray:
+        """The world pose of the gripper for grasp family ``name`` at free parameters ``free``.
 
-    def grasps(self, name: str, n: int = 16) -> np.ndarray:
-        """``n`` poses spread evenly over the free-parameter box (deterministic), (n, 4, 4)."""
+        A grasp declared ``symmetric`` is spun about its symmetry axis to the orientation closest
+        to ``reference`` (a world rotation or pose, default the Panda's home hand orientation):
+        the paper's minimal-rotation rule, which makes the orientation unique.
+        """
+        g = self._free_vector(name, free)
+        pose = self.pose @ self.concept.function("grasp", name)(self.p, self.q, g)
+        if self.concept.grasps[name].get("symmetric"):
+            axis = np.asarray(self.concept.function("grasp_axis", name)(self.p, g)).reshape(3)
+            pose = spin_to_reference(pose, axis, reference)
+        return pose
+
+    def grasps(self, name: str, n: int = 16, reference: Any = None) -> np.ndarray:
+        """``n`` poses spread evenly over the free-parameter box (deterministic), (n, 4, 4);
+        symmetric grasps are spun to ``reference`` as in :meth:`grasp`."""
         if n < 1:
             raise ParameterError(f"n must be positive, got {n}")
         ranges = list(self.grasp_range(name).values())
         samples = _spread(ranges, n)
         poses = self.concept.function("grasp", name).batch(self.p, self.q, samples)
-        return np.einsum("ij,njk->nik", self.pose, np.asarray(poses).reshape(-1, 4, 4))
+        poses = np.einsum("ij,njk->nik", self.pose, np.asarray(poses).reshape(-1, 4, 4))
+        if self.concept.grasps[name].get("symmetric"):
+            axes = self.concept.function("grasp_axis", name).batch(self.p, samples)
+            poses = spin_to_reference(poses, np.asarray(axes).reshape(-1, 3), reference)
+        return poses
 
     def grasp_width(self, name: str) -> float | None:
         if not self._grasp_entry(name)["has_width"]:
@@ -201,10 +216,25 @@ class Instance:
         f = self.pose[:3, :3] @ f_local.reshape(3)
         if not np.all(np.isfinite(f)):
             raise ParameterError(
-                f"the grasp point lies on the axis of {action}'s joint: no "
-                "direction moves it; choose a grasp away from the axis"
+                f"the grasp point lies on the axis of {action}'s joint: no linear force moves "
+                f"it; turn the hand instead (inst.twist({action!r})) or grasp off the axis"
             )
         return f
+
+    def twist(self, action: str) -> np.ndarray:
+        """The unit world axis about which the hand turns to perform ``action`` (right-handed):
+        for turning a knob or a cap with a grasp on its axis, where no linear force moves it."""
+        entry = self._action(action)
+        joint = entry["joint"]
+        if joint is None or self.concept.joints[joint]["kind"] == "prismatic":
+            raise ParameterError(
+                f"action {action} turns nothing: it needs a revolute or continuous joint"
+            )
+        i = self.concept.moving_joints.index(joint)
+        axes, _ = self.concept.function("joint_axes")(self.p, self.q)
+        axis = np.asarray(axes).reshape(-1, 3)[i]  # the opening sense is already in the axis
+        sign = 1.0 if entry["sense"] == "opening" else -1.0
+        return sign * (self.pose[:3, :3] @ axis)
 
     def follow(self, action: str, grasp: Any, to: float, steps: int = 32) -> np.ndarray:
         """The gripper path (steps, 4, 4) as the action's joint moves from its value to ``to``."""
