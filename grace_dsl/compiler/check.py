@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.compiler import types as T
+from grace_dsl.compiler.cues import CUE_TYPES, has_cue
 from grace_dsl.compiler.evaluate import BUILTINS
 from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
@@ -420,9 +421,7 @@ class _ConceptChecker:
         if g.about is not None:
             te = self.expr(g.about)
             if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
-                self.err(
-                    "E230", f"a symmetry axis is a 3-vector, not {_a(te.type)}", g.about.span
-                )
+                self.err("E230", f"a symmetry axis is a 3-vector, not {_a(te.type)}", g.about.span)
         self.free_types[g.name] = free
         self.scope = {}
 
@@ -649,6 +648,8 @@ class _ConceptChecker:
         part = self.members.get(e.obj.id) if isinstance(e.obj, ast.Name) else None
         if isinstance(part, ast.Part):
             return TE(self._part_param(part, e))
+        if isinstance(part, ast.Shape):
+            return TE(self._shape_cue(part, e))
         te = self.expr(e.obj)
         t = te.type
         if t is ERR:
@@ -665,6 +666,48 @@ class _ConceptChecker:
             return TE(ERR)
         const = te.const["xyz".index(e.field)] if isinstance(te.const, tuple) else None
         return TE(T.num(t.dim), const)
+
+    def _shape_cue(self, shape: ast.Shape, e: ast.Member) -> Type:
+        """``bar.principal_axis``: an affordance cue of a shape (see ``compiler/cues.py``)."""
+        self.types[id(e.obj)] = ERR
+        func = shape.value.func if isinstance(shape.value, ast.Call) else ""
+        if not has_cue(func, e.field):
+            known = [f for f in CUE_TYPES if has_cue(func, f)]
+            self.err(
+                "E212",
+                f"shape `{shape.name}` ({func}) has no cue `{e.field}`",
+                e.span,
+                did_you_mean(e.field, known) or "cues: " + ", ".join(known),
+            )
+            return ERR
+        if self._shape_refers_to_itself(shape):
+            self.err(
+                "E119",
+                f"shape `{shape.name}` is placed or sized in terms of its own cues",
+                e.span,
+                "compute the value from parameters instead",
+            )
+            return ERR
+        return CUE_TYPES[e.field]
+
+    def _shape_refers_to_itself(self, shape: ast.Shape) -> bool:
+        """Whether the shape's arguments or placement reach one of its own cues (through lets
+        or other shapes' cues)."""
+        roots = [shape.value, *([shape.at] if shape.at is not None else [])]
+        seen: set[str] = set()
+        while roots:
+            for node in (n.id for n in ast.names_in(roots.pop())):  # `bar.center` names `bar`
+                target = self.members.get(node)
+                if target is shape:
+                    return True
+                if node in seen or not isinstance(target, (ast.Let, ast.Shape)):
+                    continue
+                seen.add(node)
+                if isinstance(target, ast.Let):
+                    roots.append(target.value)
+                else:
+                    roots += [target.value, *([target.at] if target.at is not None else [])]
+        return False
 
     def _part_param(self, part: ast.Part, e: ast.Member) -> Type:
         """``handle.r_in``: a parameter of a part, as bound by its arguments or lifted."""

@@ -20,6 +20,7 @@ from typing import Any
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
 from grace_dsl.compiler.check import VERBS, Checked, CheckedConcept
+from grace_dsl.compiler.cues import shape_cue
 from grace_dsl.compiler.evaluate import Evaluator
 from grace_dsl.compiler.resolve import BASE_LINK
 from grace_dsl.compiler.types import Type
@@ -159,10 +160,16 @@ class _Instance:
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
         args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
 
-        def on_demand(name: str) -> Any:  # lets and part arguments; the checker ruled out cycles
+        shapes = {m.name: m for m in _all(decl) if isinstance(m, ast.Shape)}
+
+        def on_demand(name: str) -> Any:  # lets, part arguments, shape cues; no cycles (checker)
+            head, _, field = name.partition(".")
+            if head in shapes:
+                return self._cue(shapes[head], field, ev)
             return ev(lets[name].value if name in lets else args[name])
 
-        ev = Evaluator(self.b, self.checked.types, env, on_demand, frozenset(m.name for m in parts))
+        qualified = frozenset([*(m.name for m in parts), *shapes])
+        ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified)
         part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
         # links and joints
         link_of = {BASE_LINK: host_link}
@@ -289,6 +296,13 @@ class _Instance:
         return se3.matmul(parent_pose, motion)
 
     # -- geometry and manipulation
+    def _cue(self, s: ast.Shape, field: str, ev: Evaluator) -> Any:
+        v = s.value
+        assert isinstance(v, ast.Call)
+        prim = self.checked.concepts.get(v.func)
+        defaults = {k: _as_backend(self.b, x) for k, x in prim.defaults.items()} if prim else {}
+        return shape_cue(self.b, ev, s, defaults, field)
+
     def _shape(self, s: ast.Shape, prefix: str, link: str, link_pose: Any, ev: Evaluator) -> None:
         v = s.value
         assert isinstance(v, ast.Call)

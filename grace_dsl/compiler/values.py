@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.backends import NUMPY
+from grace_dsl.compiler.cues import shape_cue
 from grace_dsl.compiler.evaluate import Evaluator
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type, format_si
@@ -295,6 +296,7 @@ def evaluator_at(
                 if f"{part.name}.{k}" not in args
             }
         )
+    shapes = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Shape)}
     visiting: list[str] = []
 
     def value(name: str) -> Any:
@@ -302,11 +304,19 @@ def evaluator_at(
             raise _Cycle([*visiting[visiting.index(name) :], name])
         visiting.append(name)
         try:
+            head, _, field = name.partition(".")
+            if head in shapes:
+                return _shape_cue(shapes[head], field)
             return ev(lets[name].value if name in lets else args[name].value)
         finally:
             visiting.pop()
 
-    ev = Evaluator(NUMPY, types, env, value, frozenset(p.name for p in parts))
+    def _shape_cue(shape: ast.Shape, field: str) -> Any:
+        call = shape.value
+        prim = done.get(call.func) if isinstance(call, ast.Call) else None
+        return shape_cue(NUMPY, ev, shape, dict(prim.defaults) if prim else {}, field)
+
+    ev = Evaluator(NUMPY, types, env, value, frozenset([*(p.name for p in parts), *shapes]))
     return ev
 
 

@@ -211,3 +211,39 @@ def test_keywords_stay_keywords() -> None:
     assert "`if` is a keyword" in (d.hint or "")
     ok = parse("use primitive.shapes\nconcept A { let x = h.part }", "t.eac")
     assert ok.diagnostics == ()  # module paths and members may use any word
+
+
+def test_grasp_clauses_in_any_order() -> None:
+    """`width`, `by` and `symmetric [about v]` follow the pose in any order; the AST is the same."""
+    base = "concept A { grasp g(t in [0, 1]) = trans(0, 0, t) %s }"
+    orders = [
+        "width 2mm by hook symmetric about (1, 0, 0)",
+        "symmetric about (1, 0, 0) by hook width 2mm",
+        "by hook symmetric about (1, 0, 0) width 2mm",
+    ]
+    grasps = [one_concept(base % o).members[0] for o in orders]
+    assert grasps[0] == grasps[1] == grasps[2]
+    g = grasps[0]
+    assert isinstance(g, ast.Grasp)
+    assert (g.mode, g.symmetric, g.about) == (
+        "hook",
+        True,
+        ast.Vector((ast.Number("1"), ast.Number("0"), ast.Number("0"))),
+    )
+    plain = one_concept("concept A { grasp g = trans(0, 0, 1mm) symmetric }").members[0]
+    assert isinstance(plain, ast.Grasp)
+    assert (plain.mode, plain.symmetric, plain.about) == (None, True, None)
+
+
+def test_grasp_clause_words_stay_names() -> None:
+    c = one_concept(
+        "concept A { param by : scalar = 1  param symmetric : scalar = 2\n"
+        "  let about = by * symmetric  grasp g = trans(0, 0, about * 1mm) by push }"
+    )
+    assert [m.name for m in c.members] == ["by", "symmetric", "about", "g"]  # type: ignore[union-attr]
+
+
+def test_a_grasp_clause_given_twice() -> None:
+    r = parse("concept A { grasp g = trans(0, 0, 1mm) by hook by push }", "t.eac")
+    assert [(d.code, d.span.col) for d in r.diagnostics] == [("E007", 51)]
+    assert "gives `by` twice" in r.diagnostics[0].message
