@@ -120,6 +120,10 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
     return Compiled(low, fns)
 
 
+AXIS_TOLERANCE = 1e-6  # metres (times the axis' unit length)
+_NAN = float("nan")
+
+
 def force_direction(low: Lowered, action: str, x: list[Any]) -> Any:
     """The unit direction in which the point x must move to perform ``action``."""
     a = low.actions[action]
@@ -132,7 +136,8 @@ def force_direction(low: Lowered, action: str, x: list[Any]) -> Any:
         v = se3.cross(joint.axis, tuple(xi - oi for xi, oi in zip(x, joint.origin)))
     v = tuple(a.sign * c for c in v)
     n = ca.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    return _vec([c / n for c in v])
+    # On the axis (within a micrometre) no direction moves the point: NaN, not rounding noise.
+    return _vec([ca.if_else(n > AXIS_TOLERANCE, c / n, _NAN) for c in v])
 
 
 def sympy_model(checked: Checked, name: str) -> Lowered:

@@ -38,14 +38,40 @@ def _rotation(a: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
+# A quarter turn about the reference's x axis: the tie-breaking reference (see minimal_spin).
+_TIE_BREAK = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
 def minimal_spin(r0: np.ndarray, axis: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """The spin angle(s) about ``axis`` (grasp frame, unit) that bring ``r0 Rot(axis, phi)``
-    closest to ``reference``; shapes (..., 3, 3), (..., 3), (3, 3) -> (...)."""
+    closest to ``reference``; shapes (..., 3, 3), (..., 3), (3, 3) -> (...).
+
+    Every spin is equally close when the symmetry axis is turned exactly half-way from the
+    reference (e.g. a hand approaching opposite to the reference's approach); the spin is then
+    taken closest to the reference turned a quarter about its x axis, which is not degenerate
+    there, so the result stays unique.
+    """
+    b, c = _objective(r0, axis, reference)
+    tied = b * b + c * c < 1e-18
+    if np.any(tied):
+        b2, c2 = _objective(r0, axis, reference @ _TIE_BREAK)
+        b, c = np.where(tied, b2, b), np.where(tied, c2, c)
+    return np.arctan2(b, -c)
+
+
+def _objective(r0: np.ndarray, axis: np.ndarray, reference: np.ndarray) -> tuple[Any, Any]:
+    """(B, C) of trace(R_ref^T r0 Rot(axis, phi)) = B sin(phi) - C cos(phi) + const."""
     a = reference.T @ r0
     k = _skew(axis)
-    b = np.einsum("...ij,...ji->...", a, k)
-    c = np.einsum("...ij,...ji->...", a, k @ k)
-    return np.arctan2(b, -c)
+    return np.einsum("...ij,...ji->...", a, k), np.einsum("...ij,...ji->...", a, k @ k)
+
+
+def spin_about(poses: np.ndarray, axes: np.ndarray, angle: float) -> np.ndarray:
+    """Poses (..., 4, 4) turned by ``angle`` about their own axes (..., 3, grasp frame)."""
+    axes = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
+    out = poses.copy()
+    out[..., :3, :3] = poses[..., :3, :3] @ _rotation(axes, np.full(axes.shape[:-1], angle))
+    return out
 
 
 def spin_to_reference(poses: np.ndarray, axes: np.ndarray, reference: Any) -> np.ndarray:
