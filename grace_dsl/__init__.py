@@ -13,7 +13,9 @@ from grace_dsl.runtime.errors import (
     RequirementError,
     UnknownNameError,
 )
+from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.manipulation import Option
 from grace_dsl.runtime.library import Concept, Library, compile_paths, load_artifact, load_library
 
 __version__ = "0.1.0"
@@ -22,8 +24,10 @@ __all__ = [
     "CompileError",
     "Concept",
     "GraceError",
+    "Gripper",
     "Instance",
     "Library",
+    "Option",
     "ParameterError",
     "RequirementError",
     "UnknownNameError",

@@ -236,6 +236,16 @@ class Instance:
         sign = 1.0 if entry["sense"] == "opening" else -1.0
         return sign * (self.pose[:3, :3] @ axis)
 
+    def rank(
+        self, action: str, gripper: Any = None, samples: int = 32, reference: Any = None
+    ) -> tuple[Any, ...]:
+        """The manipulation functions of ``action`` judged for ``gripper`` (default the Panda),
+        best first: see :func:`grace_dsl.runtime.manipulation.rank`."""
+        from grace_dsl.runtime.gripper import Gripper
+        from grace_dsl.runtime.manipulation import rank
+
+        return rank(self, action, gripper or Gripper.panda(), samples, reference)
+
     def follow(self, action: str, grasp: Any, to: float, steps: int = 32) -> np.ndarray:
         """The gripper path (steps, 4, 4) as the action's joint moves from its value to ``to``."""
         entry = self._action(action)

@@ -1,0 +1,168 @@
+"""Ranking the manipulation functions of an action for a given gripper.
+
+An action (``open``) may be performed through several manipulation functions: pinch the handle,
+hook the fingers behind it, push the door's edge.  Each asks something of the hand: a pinch needs
+fingers that close and open wide enough; every function needs the hand to come in along the
+grasp's approach (+z of the grasp frame).  A push or press contact can only push roughly along
+its fingers; a hook pulls back or sideways against them but cannot push in.  ``rank`` checks
+every function of the action against a gripper's abilities over its free-parameter range and
+orders them: feasible first, then prehensile before hooking before pushing, then by how far the
+hand must tilt from its preferred approach.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from grace_dsl.runtime.errors import ParameterError
+
+if TYPE_CHECKING:
+    from grace_dsl.runtime.gripper import Gripper
+    from grace_dsl.runtime.instance import Instance
+
+MODE_ORDER = {"pinch": 0, "hook": 1, "push": 2, "press": 2}
+TWIST_VERBS = ("turn", "rotate")
+# A push transmits force within this angle of the fingers' direction (+z): 60 deg, a friction
+# cone with mu ~ 1.7, generous on purpose; a hook anything outside it.
+CONTACT_CONE = math.radians(60.0)
+SPIN_STEPS = 12  # spins tried for a grasp symmetric about an axis other than its approach
+
+
+@dataclass(frozen=True)
+class Option:
+    """One manipulation function of an action, judged for one gripper."""
+
+    grasp: str
+    mode: str
+    feasible: bool
+    tilt: float  # radians between the best pose's approach and the gripper's required approach
+    free: dict[str, float] = field(default_factory=dict)  # free parameters of the best pose
+    pose: np.ndarray | None = field(default=None, compare=False, repr=False)
+    reasons: tuple[str, ...] = ()  # why it is infeasible (empty when feasible)
+    doc: str = ""
+
+    def sort_key(self) -> tuple[int, int, float]:
+        return (0 if self.feasible else 1, MODE_ORDER.get(self.mode, 3), self.tilt)
+
+
+def rank(
+    inst: Instance,
+    action: str,
+    gripper: Gripper,
+    samples: int = 32,
+    reference: Any = None,
+) -> tuple[Option, ...]:
+    """Every manipulation function of ``action``, best first (see the module docstring)."""
+    entry = inst._action(action)
+    if samples < 1:
+        raise ParameterError(f"samples must be positive, got {samples}")
+    options = [_judge(inst, entry, g, gripper, samples, reference) for g in candidates(inst, entry)]
+    return tuple(sorted(options, key=Option.sort_key))
+
+
+def candidates(inst: Instance, entry: dict[str, Any]) -> list[str]:
+    """The grasps an action names with ``using``; else every grasp on the link it moves."""
+    if entry["using"]:
+        return list(entry["using"])
+    joint = entry["joint"]
+    if joint is None:
+        return list(inst.concept.grasps)
+    child = inst.concept.joints[joint]["child"]
+    return [n for n, g in inst.concept.grasps.items() if g["link"] == child]
+
+
+def _judge(
+    inst: Instance,
+    action: dict[str, Any],
+    name: str,
+    gripper: Gripper,
+    samples: int,
+    reference: Any,
+) -> Option:
+    g = inst.concept.grasps[name]
+    mode = g.get("mode", "pinch")
+    reasons = list(_hand_reasons(inst, name, mode, gripper))
+    poses, free = _poses(inst, name, samples, reference)
+    tilt = _tilt(poses, gripper)
+    force_ok = np.array([_transmits(inst, action, mode, p) for p in poses])
+    within = tilt <= gripper.approach_tolerance + 1e-9
+    usable = force_ok & within
+    if not force_ok.any():
+        reasons.append(f"a {mode} contact cannot apply the force of {action['name']} here")
+    elif not usable.any():
+        reasons.append(
+            f"the hand would tilt {math.degrees(float(tilt[force_ok].min())):.0f} deg from its "
+            f"approach; it allows {math.degrees(gripper.approach_tolerance):.0f} deg"
+        )
+    pool = np.flatnonzero(usable) if usable.any() else np.arange(len(poses))
+    best = int(pool[np.argmin(tilt[pool])])
+    return Option(
+        name,
+        mode,
+        not reasons,
+        float(tilt[best]),
+        free[best],
+        poses[best],
+        tuple(reasons),
+        g.get("doc", ""),
+    )
+
+
+def _hand_reasons(inst: Instance, name: str, mode: str, gripper: Gripper) -> list[str]:
+    reasons = []
+    if mode == "pinch" and not gripper.can_close:
+        reasons.append(f"{name} pinches: it needs fingers that close")
+    width = inst.grasp_width(name)
+    if mode == "pinch" and width is not None and width > gripper.max_width + 1e-12:
+        reasons.append(
+            f"{name} needs a {width * 1e3:.0f} mm opening; {gripper.name} opens "
+            f"{gripper.max_width * 1e3:.0f} mm"
+        )
+    return reasons
+
+
+def _poses(
+    inst: Instance, name: str, samples: int, reference: Any
+) -> tuple[np.ndarray, list[dict[str, float]]]:
+    """Poses over the free-parameter box, and for grasps symmetric about an axis that is not the
+    approach, over spins as well (the spin changes where the hand comes from)."""
+    from grace_dsl.runtime.instance import _spread
+    from grace_dsl.runtime.symmetry import spin_about
+
+    ranges = inst.grasp_range(name)
+    values = _spread(list(ranges.values()), samples)
+    poses = inst.grasps(name, samples, reference=reference)
+    free = [dict(zip(ranges, map(float, row))) for row in values]
+    g = inst.concept.grasps[name]
+    if not g.get("symmetric") or g.get("demands", {}).get("orientation") == "approach":
+        return poses, free
+    axes = np.asarray(inst.concept.function("grasp_axis", name).batch(inst.p, values))
+    spins = np.linspace(0.0, 2 * math.pi, SPIN_STEPS, endpoint=False)
+    spun = [spin_about(poses, axes.reshape(-1, 3), s) for s in spins]
+    return np.concatenate(spun), free * SPIN_STEPS
+
+
+def _tilt(poses: np.ndarray, gripper: Gripper) -> np.ndarray:
+    if gripper.approach is None:
+        return np.zeros(len(poses))
+    want = np.asarray(gripper.approach, dtype=float)
+    want = want / np.linalg.norm(want)
+    return np.arccos(np.clip(poses[:, :3, 2] @ want, -1.0, 1.0))
+
+
+def _transmits(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray) -> bool:
+    """Whether a contact of this mode can apply the action's force at this pose."""
+    try:
+        f = inst.force(action["name"], grasp=pose)
+    except ParameterError:  # on the joint's axis: only a grip can turn it
+        return action["verb"] in TWIST_VERBS and mode == "pinch"
+    along = float(f @ pose[:3, 2])
+    if mode in ("push", "press"):
+        return along >= math.cos(CONTACT_CONE)
+    if mode == "hook":  # pulls back or sideways against the curled fingers, never pushes in
+        return along <= math.cos(CONTACT_CONE)
+    return True
