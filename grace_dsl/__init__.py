@@ -15,8 +15,8 @@ from grace_dsl.runtime.errors import (
 )
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.runtime.manipulation import Option
 from grace_dsl.runtime.library import Concept, Library, compile_paths, load_artifact, load_library
+from grace_dsl.runtime.manipulation import Option
 
 __version__ = "0.1.0"
 
