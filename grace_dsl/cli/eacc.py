@@ -332,7 +332,8 @@ def cmd_explain(args: argparse.Namespace) -> int:
         )
     for g in c.grasps.values():
         free = ", ".join(f["name"] for f in g["free"]) or "no free parameters"
-        print_text(f"grasp {g['name']}({free}) on link {g['link']}", style="bold")
+        how = g.get("mode", "pinch") + (", symmetric" if g.get("symmetric") else "")
+        print_text(f"grasp {g['name']}({free}) on link {g['link']}, by {how}", style="bold")
         if g["doc"]:
             print_text("  " + g["doc"].replace("\n", "\n  "))
         if "." in g["name"]:
