@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from grace_dsl.compiler import se3
 from grace_dsl.compiler.functions import sympy_matrix
 from grace_dsl.compiler.lower import GraspInfo, Lowered, ParamInfo
 from grace_dsl.compiler.types import Type
@@ -90,6 +91,62 @@ def _constant_axis(axis: Any) -> tuple[float, ...] | None:
     return tuple(float(x) for x in np.round(v / n, 12)) if n > 0 else None
 
 
+GRASP_POINT = tuple(sp.Symbol(n, real=True) for n in ("x_g", "y_g", "z_g"))
+
+
+def force_vector(exact: Lowered, action: str) -> tuple[list[Any], bool]:
+    """The vector v along which the grasp point x = (x_g, y_g, z_g) (concept frame) moves for an
+    action, and whether F = v / |v| still needs normalising (SymPy model ``exact``).
+
+    An explicit direction is the unit vector itself; along a revolute joint v = s a x (x - o),
+    along a prismatic one v = s a (sense s, axis a, origin o)."""
+    a = exact.actions[action]
+    if a.direction is not None:
+        v = list(a.direction)
+    else:
+        joint = next(j for j in exact.joints if j.name == a.joint)
+        v = list(joint.axis)
+        if joint.kind != "prismatic":
+            v = list(se3.cross(tuple(v), tuple(x - o for x, o in zip(GRASP_POINT, joint.origin))))
+        v = [a.sign * c for c in v]
+    v = [_tidy(c, exact.q) for c in v]
+    return v, _tidy(sum(c**2 for c in v), exact.q) != 1
+
+
+def force_formula(exact: Lowered, action: str) -> dict[str, Any]:
+    """The force direction of an action as LaTeX and text (see ``force_vector``); ``rest_*`` is
+    the same with every joint at 0, the short form a prompt shows."""
+    v, normalize = force_vector(exact, action)
+    rest = [_tidy(sp.sympify(c).subs({q: 0 for q in exact.q}), exact.q) for c in v]
+    return {
+        **_vector_text(v, normalize),
+        **{f"rest_{k}": t for k, t in _vector_text(rest, normalize).items()},
+        "normalize": normalize,
+    }
+
+
+def _vector_text(v: list[Any], normalize: bool) -> dict[str, str]:
+    latex, text = sp.latex(sp.Matrix(v)), sp.sstr(v)
+    if normalize:
+        return {
+            "latex": rf"\operatorname{{normalize}}\left({latex}\right)",
+            "text": f"normalize({text})",
+        }
+    return {"latex": latex, "text": text}
+
+
+def _tidy(e: Any, qs: list[Any]) -> Any:
+    """Cheap exact simplification (trigsimp costs seconds): expand, replace sin(q)^2 by
+    1 - cos(q)^2 for every joint value q, expand again, pull out common factors."""
+    e = sp.expand(sp.sympify(e))
+    for q in qs:
+        e = e.subs(sp.sin(q) ** 2, 1 - sp.cos(q) ** 2)
+    e = sp.expand(e)
+    for q in qs:  # sqrt(sin^2 + cos^2) from a normalised explicit direction
+        e = e.subs(sp.sqrt(sp.sin(q) ** 2 + sp.cos(q) ** 2), 1)
+    return sp.factor_terms(e)
+
+
 def concept_entry(
     decl: ast.Concept,
     file: str,
@@ -145,6 +202,7 @@ def concept_entry(
                 "direction": a.direction is not None,
                 "using": list(a.using),
                 "doc": a.doc,
+                "formula": force_formula(exact, a.name),
             }
             for a in low.actions.values()
         ],
