@@ -1,0 +1,657 @@
+"""Machine-check a concept over random parameter draws (``eacc verify``).
+
+A concept can compile, type-check and still be wrong: a grasp a centimetre off its handle, a width
+the hand cannot open to, an action whose force drives the joint backwards. ``verify_concept`` draws
+parameters uniformly inside their ranges (rejecting draws that break a ``require``), places each
+instance at a random world pose, and at its joints closed (q = 0) and at random values checks,
+for every grasp family (parts' grasps included) at several free-parameter values:
+
+``near``         the origin lies within 5 mm of the part it grasps (signed distance of the shapes
+                 of the grasp's link, only the part's own shapes for a part's grasp);
+``between``      pinch: material lies between the pads, on the segment between their inner faces
+                 through the origin;
+``width``        pinch: 0 < width <= the gripper's opening (the declared width, else the width of
+                 material along +y at the origin);
+``penetration``  the pads, closed to the width (pinch) or fully (hook, push, press), enter no shape
+                 of the instance by more than 2 mm;
+``into``         push and press: +z points into the material (the part's signed distance
+                 decreases along +z at the origin);
+
+and for every action, for the grasps it uses (``using``, else the grasps on the link it moves):
+
+``power``        along a joint: the force has positive power on the joint's motion in the action's
+                 sense (cosine between the force and the grasp point's velocity per unit dq, times
+                 +1 opening / -1 closing, is > 0);
+``unit_force``   toward a fixed direction: the force is a unit vector;
+``follow``       ``inst.follow`` keeps the grasp attached to its link: G_k = L(q_k) L(q_0)^-1 G_0
+                 to 1e-6, with L the link pose computed independently.
+
+Each failure keeps the values that caused it, in display units (mm, deg) and in SI (to reproduce
+it with ``concept.instantiate``). Per draw, the worst sample of each check and member is kept.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from grace_dsl.compiler.types import format_si
+from grace_dsl.runtime.errors import ParameterError, RequirementError
+from grace_dsl.runtime.gripper import Gripper, finger_points
+from grace_dsl.runtime.instance import _spread
+from grace_dsl.runtime.shapes import ShapeTree
+
+if TYPE_CHECKING:
+    from grace_dsl.runtime.instance import Instance
+    from grace_dsl.runtime.library import Concept, Library
+
+NEAR = 0.005  # m: how far a grasp's origin may lie from the part it grasps
+PENETRATION = 0.002  # m: how deep a pad may enter a shape (the rubber pads give that much)
+ATTACHED = 1e-6  # how far a followed grasp may drift from its link (pose entries, m / unitless)
+TOUCH = 1e-6  # m: a surface the segment between the pads touches counts as material
+UNIT = 1e-9  # tolerance on |force| = 1
+FREE_SAMPLES = 5  # free-parameter values per grasp family (spread over its box)
+FOLLOW_STEPS = 8
+MAX_ATTEMPTS = 20  # draws attempted per requested draw before giving up on a tight `require`
+TWIST_VERBS = ("turn", "rotate")  # a grasp on these actions' axis is turned, not pushed
+
+CHECKS = ("near", "between", "width", "penetration", "into", "power", "unit_force", "follow")
+
+
+@dataclass(frozen=True)
+class Failure:
+    """One check that failed on one draw: the worst sample of that draw."""
+
+    concept: str
+    check: str
+    member: str  # the grasp, or "action/grasp" for action checks
+    params: dict[str, str]  # parameters, joint values (`q.<joint>`) and free grasp parameters
+    value: float  # measured, in ``unit``
+    limit: float  # in ``unit``
+    unit: str  # "mm", "" ...
+    message: str
+    si: dict[str, Any] = field(default_factory=dict)  # params, joints, free, pose: to reproduce
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "concept": self.concept,
+            "check": self.check,
+            "member": self.member,
+            "params": dict(self.params),
+            "value": self.value,
+            "limit": self.limit,
+            "unit": self.unit,
+            "message": self.message,
+            "si": self.si,
+        }
+
+    @staticmethod
+    def from_json(d: Mapping[str, Any]) -> Failure:
+        return Failure(
+            d["concept"],
+            d["check"],
+            d["member"],
+            dict(d["params"]),
+            float(d["value"]),
+            float(d["limit"]),
+            d["unit"],
+            d["message"],
+            dict(d.get("si", {})),
+        )
+
+
+@dataclass(frozen=True)
+class ConceptReport:
+    """The outcome of verifying one concept."""
+
+    concept: str
+    draws: int  # accepted draws (each satisfies every `require`)
+    attempts: int  # draws made, rejected ones included
+    evaluated: dict[str, int]  # check -> samples evaluated
+    failures: tuple[Failure, ...]
+    note: str = ""  # e.g. why fewer draws than asked were accepted
+
+    @property
+    def rejected(self) -> int:
+        return self.attempts - self.draws
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "concept": self.concept,
+            "ok": self.ok,
+            "draws": self.draws,
+            "attempts": self.attempts,
+            "rejected": self.rejected,
+            "evaluated": dict(self.evaluated),
+            "note": self.note,
+            "failures": [f.to_json() for f in self.failures],
+        }
+
+    @staticmethod
+    def from_json(d: Mapping[str, Any]) -> ConceptReport:
+        return ConceptReport(
+            d["concept"],
+            int(d["draws"]),
+            int(d["attempts"]),
+            {k: int(v) for k, v in d["evaluated"].items()},
+            tuple(Failure.from_json(f) for f in d["failures"]),
+            d.get("note", ""),
+        )
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Every concept verified in one run, with the settings that reproduce it."""
+
+    draws: int
+    seed: int
+    gripper: str
+    concepts: tuple[ConceptReport, ...]
+
+    @property
+    def ok(self) -> bool:
+        return all(c.ok for c in self.concepts)
+
+    @property
+    def failures(self) -> tuple[Failure, ...]:
+        return tuple(f for c in self.concepts for f in c.failures)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "ok": self.ok,
+            "draws": self.draws,
+            "seed": self.seed,
+            "gripper": self.gripper,
+            "concepts": [c.to_json() for c in self.concepts],
+        }
+
+    @staticmethod
+    def from_json(d: Mapping[str, Any]) -> VerifyReport:
+        return VerifyReport(
+            int(d["draws"]),
+            int(d["seed"]),
+            d["gripper"],
+            tuple(ConceptReport.from_json(c) for c in d["concepts"]),
+        )
+
+
+# ---- entry points ------------------------------------------------------------------------------
+
+
+def verify_library(
+    lib: Library,
+    names: Sequence[str] | None = None,
+    draws: int = 200,
+    seed: int = 0,
+    gripper: Gripper | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> VerifyReport:
+    """Verify ``names`` (default: every concept that is not a primitive) of ``lib``.
+
+    Each concept gets its own stream of draws derived from ``seed`` and its name, so verifying a
+    subset gives the same draws as verifying the whole library. ``progress(name, done, total)``
+    is called before each concept.
+    """
+    gripper = gripper or Gripper.panda()
+    chosen = list(names) if names is not None else verifiable(lib)
+    reports = []
+    for i, name in enumerate(chosen):
+        if progress is not None:
+            progress(name, i, len(chosen))
+        reports.append(verify_concept(lib[name], draws, concept_seed(seed, name), gripper))
+    if progress is not None and chosen:
+        progress(chosen[-1], len(chosen), len(chosen))
+    return VerifyReport(draws, seed, gripper.name, tuple(reports))
+
+
+def verifiable(lib: Library) -> list[str]:
+    """The concepts of a library that have something to verify (primitives have not)."""
+    return [n for n in lib if lib[n].entry["kind"] != "primitive"]
+
+
+def concept_seed(seed: int, name: str) -> int:
+    """A per-concept seed: stable across runs and independent of which others are verified."""
+    return int(np.random.SeedSequence([seed, zlib.crc32(name.encode())]).generate_state(1)[0])
+
+
+def verify_concept(
+    concept: Concept, draws: int = 200, seed: int = 0, gripper: Gripper | None = None
+) -> ConceptReport:
+    """Draw ``draws`` valid parameter sets of ``concept`` and run every check on each (see the
+    module docstring). Draws that break a ``require`` are redrawn, up to ``MAX_ATTEMPTS`` times
+    ``draws`` attempts in all; the report says when fewer were accepted."""
+    if draws < 1:
+        raise ParameterError(f"draws must be a positive number, got {draws}")
+    gripper = gripper or Gripper.panda()
+    rng = np.random.default_rng(seed)
+    run = _Run(concept, gripper, rng)
+    accepted = attempts = 0
+    cap = MAX_ATTEMPTS * draws
+    while accepted < draws and attempts < cap:
+        attempts += 1
+        values = draw_params(concept, rng)
+        pose = random_pose(rng)
+        try:
+            inst = concept.instantiate(pose=pose, **values)
+        except RequirementError:
+            continue
+        accepted += 1
+        run.check_draw(inst)
+    note = ""
+    if accepted < draws:
+        note = (
+            f"only {accepted} of {attempts} draws satisfy the requirements "
+            f"({accepted / attempts:.1%}); stopped after {cap} attempts"
+        )
+    return ConceptReport(concept.name, accepted, attempts, dict(run.evaluated), run.failures, note)
+
+
+def draw_params(concept: Concept, rng: np.random.Generator) -> dict[str, Any]:
+    """A value of every parameter, uniform inside its range (per component for vectors)."""
+    out: dict[str, Any] = {}
+    for p in concept.params:
+        if p.kind == "choice":
+            assert p.choices is not None
+            out[p.name] = p.choices[int(rng.integers(len(p.choices)))]
+        elif p.kind == "bool":
+            out[p.name] = bool(rng.integers(2))
+        elif p.kind == "int":
+            out[p.name] = int(rng.integers(math.ceil(p.lo), math.floor(p.hi) + 1))
+        elif p.kind == "vec":
+            out[p.name] = tuple(float(v) for v in rng.uniform(p.lo, p.hi))
+        else:
+            out[p.name] = float(rng.uniform(p.lo, p.hi))
+    return out
+
+
+def random_pose(rng: np.random.Generator) -> np.ndarray:
+    """A rigid transform: a uniform rotation (unit quaternion) and a translation in a 2 m cube."""
+    x, y, z, w = rng.normal(size=4)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    m = np.eye(4)
+    m[:3, :3] = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+    m[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+    return m
+
+
+# ---- geometry ----------------------------------------------------------------------------------
+
+
+class _Geometry:
+    """Signed distances of one instance's shapes: all of them, or those a grasp holds."""
+
+    def __init__(self, inst: Instance):
+        self.inst = inst
+        self.tree = ShapeTree(inst)
+        # world <- concept frame at q = 0, per link: where each link's shapes are now
+        self.motions = {
+            link: inst.link_pose(link) @ np.linalg.inv(self.tree.link_pose(link))
+            for link in inst.concept.links
+        }
+        self._inverse = {k: np.linalg.inv(m) for k, m in self.motions.items()}
+
+    def sdf(self, points: np.ndarray, shapes: Sequence[str] | None = None) -> np.ndarray:
+        names = self.tree.outermost() if shapes is None else shapes
+        if not names:
+            return np.full(len(points), np.inf)
+        dists = []
+        for name in names:
+            inv = self._inverse[self.tree.shapes[name]["link"]]
+            local = points @ inv[:3, :3].T + inv[:3, 3]
+            dists.append(self.tree.sdf(name, self.tree.placement(name), local))
+        return np.min(dists, axis=0)
+
+    def held_shapes(self, grasp: str) -> list[str]:
+        """The shapes a grasp holds: those of its link, and of its part for a part's grasp."""
+        link = self.inst.concept.grasps[grasp]["link"]
+        on_link = self.tree.outermost(link)
+        if "." not in grasp:
+            return on_link
+        prefix = grasp.rsplit(".", 1)[0] + "."
+        own = [n for n in on_link if n.startswith(prefix)]
+        return own or on_link
+
+
+# ---- one run -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Sample:
+    """A grasp pose and what produced it."""
+
+    grasp: str
+    pose: np.ndarray
+    free: dict[str, float]
+
+
+@dataclass(frozen=True)
+class _Measure:
+    """One check on one sample: whether it passed and by how much it missed."""
+
+    check: str
+    ok: bool
+    badness: float  # how far from passing, larger is worse (ranks the samples of a draw)
+    value: float  # shown in ``unit``
+    limit: float
+    unit: str
+    message: str
+
+
+def _at_most(check: str, value: float, limit: float, unit: str, message: str) -> _Measure:
+    """Passes when value <= limit; lengths come in metres and are shown in mm (unit "mm")."""
+    k = 1e3 if unit == "mm" else 1.0
+    return _Measure(check, value <= limit, value - limit, value * k, limit * k, unit, message)
+
+
+class _Run:
+    """The checks of one concept, accumulating counts and failures over its draws."""
+
+    def __init__(self, concept: Concept, gripper: Gripper, rng: np.random.Generator):
+        self.concept, self.gripper, self.rng = concept, gripper, rng
+        self.evaluated: dict[str, int] = {c: 0 for c in CHECKS}
+        self._failures: list[Failure] = []
+        self._worst: dict[tuple[str, str], tuple[float, Failure]] = {}
+        self._closed = finger_points(gripper, 0.0)
+
+    @property
+    def failures(self) -> tuple[Failure, ...]:
+        return tuple(self._failures)
+
+    def check_draw(self, inst: Instance) -> None:
+        """Every check at the closed joints and at random joint values; per check and member,
+        the worst failing sample of the draw is kept."""
+        self._worst = {}
+        for state in (inst, self._random_joints(inst)):
+            geo = _Geometry(state)
+            samples = {g: self._samples(state, g) for g in self.concept.grasps}
+            for ss in samples.values():
+                for s in ss:
+                    self._check_grasp(state, geo, s)
+            for action, entry in self.concept.actions.items():
+                for g in _action_grasps(self.concept, entry):
+                    for s in samples[g]:
+                        self._check_action(state, action, entry, s)
+        self._failures += [f for _, f in self._worst.values()]
+
+    def _random_joints(self, inst: Instance) -> Instance:
+        joints = {}
+        for name, (lo, hi) in inst.joint_limits().items():
+            lo, hi = (-math.pi, math.pi) if not math.isfinite(hi - lo) else (lo, hi)
+            joints[name] = float(self.rng.uniform(lo, hi))
+        return self.concept.instantiate(pose=inst.pose, joints=joints, **inst.params)
+
+    def _samples(self, inst: Instance, grasp: str) -> list[_Sample]:
+        ranges = inst.grasp_range(grasp)
+        values = _spread(list(ranges.values()), FREE_SAMPLES)
+        poses = inst.grasps(grasp, FREE_SAMPLES)
+        return [
+            _Sample(grasp, pose, dict(zip(ranges, map(float, row))))
+            for pose, row in zip(poses, values)
+        ]
+
+    def _record(self, inst: Instance, member: str, s: _Sample, m: _Measure) -> None:
+        self.evaluated[m.check] += 1
+        if m.ok:
+            return
+        key = (m.check, member)
+        if key in self._worst and self._worst[key][0] >= m.badness:
+            return
+        failure = Failure(
+            self.concept.name,
+            m.check,
+            member,
+            _display(inst, s.grasp, s.free),
+            float(m.value),
+            float(m.limit),
+            m.unit,
+            m.message,
+            _si(inst, s.free),
+        )
+        self._worst[key] = (m.badness, failure)
+
+    # -- grasps
+    def _check_grasp(self, inst: Instance, geo: _Geometry, s: _Sample) -> None:
+        mode = self.concept.grasps[s.grasp].get("mode", "pinch")
+        held = geo.held_shapes(s.grasp)
+        d = float(geo.sdf(s.pose[None, :3, 3], held)[0])
+        message = f"the origin is {d * 1e3:.2f} mm from the part it grasps"
+        self._record(inst, s.grasp, s, _at_most("near", d, NEAR, "mm", message))
+        if mode == "pinch":
+            self._check_pinch(inst, geo, s, held)
+        else:
+            self._check_contact(inst, geo, s, held, mode)
+
+    def _check_pinch(self, inst: Instance, geo: _Geometry, s: _Sample, held: list[str]) -> None:
+        origin, y = s.pose[:3, 3], s.pose[:3, 1]
+        declared = inst.grasp_width(s.grasp)
+        if declared is None:
+            width, what = _material_width(geo, held, origin, y, self.gripper), "material"
+        else:
+            width, what = declared, "declared"
+        top = self.gripper.max_width
+        fits = 0.0 < width <= top + 1e-12
+        message = (
+            f"the {what} width is {width * 1e3:.2f} mm; {self.gripper.name} pinches "
+            f"widths in (0, {top * 1e3:g}] mm"
+        )
+        miss = max(width - top, -width)
+        measure = _Measure("width", fits, miss, width * 1e3, top * 1e3, "mm", message)
+        self._record(inst, s.grasp, s, measure)
+        half = max(width, 0.0) / 2
+        segment = origin + np.linspace(-half, half, 41)[:, None] * y
+        gap = float(np.min(geo.sdf(segment, held)))
+        message = (
+            f"no material between the pads: the part is {gap * 1e3:.2f} mm from the segment "
+            "between their inner faces"
+        )
+        between = _at_most("between", gap, 0.0, "mm", message)
+        self._record(inst, s.grasp, s, replace(between, ok=gap <= TOUCH))
+        if fits:
+            self._check_penetration(inst, geo, s, width)
+
+    def _check_contact(
+        self, inst: Instance, geo: _Geometry, s: _Sample, held: list[str], mode: str
+    ) -> None:
+        self._check_penetration(inst, geo, s, 0.0)
+        if mode not in ("push", "press"):
+            return
+        origin, z = s.pose[:3, 3], s.pose[:3, 2]
+        h = 5e-4
+        d = geo.sdf(np.array([origin + h * z, origin - h * z]), held)
+        slope = float((d[0] - d[1]) / (2 * h))
+        message = (
+            f"+z of a {mode} grasp must point into the material; the part's distance changes "
+            f"by {slope:+.3f} per unit step along +z"
+        )
+        self._record(inst, s.grasp, s, _Measure("into", slope < 0, slope, slope, 0.0, "", message))
+
+    def _check_penetration(self, inst: Instance, geo: _Geometry, s: _Sample, width: float) -> None:
+        local = self._closed if width == 0.0 else finger_points(self.gripper, width)
+        world = local @ s.pose[:3, :3].T + s.pose[:3, 3]
+        depth = -float(np.min(geo.sdf(world)))
+        message = f"the pads closed to {width * 1e3:.2f} mm enter the instance {depth * 1e3:.2f} mm"
+        self._record(inst, s.grasp, s, _at_most("penetration", depth, PENETRATION, "mm", message))
+
+    # -- actions
+    def _check_action(
+        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample
+    ) -> None:
+        member = f"{action}/{s.grasp}"
+        if entry["joint"] is not None:
+            self._check_power(inst, action, entry, s, member)
+            self._check_follow(inst, action, entry, s, member)
+            return
+        f = inst.force(action, grasp=s.pose)
+        err = abs(float(np.linalg.norm(f)) - 1.0) if np.all(np.isfinite(f)) else math.inf
+        message = f"the force {np.round(f, 6).tolist()} is not a unit vector"
+        self._record(inst, member, s, _at_most("unit_force", err, UNIT, "", message))
+
+    def _check_power(
+        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample, member: str
+    ) -> None:
+        joint = entry["joint"]
+        try:
+            f = inst.force(action, grasp=s.pose)
+        except ParameterError as exc:
+            if entry["verb"] in TWIST_VERBS:  # on the axis: the hand turns (inst.twist)
+                return
+            self._record(inst, member, s, _Measure("power", False, 1.0, 0.0, 0.0, "", str(exc)))
+            return
+        v = _grasp_velocity(inst, self.concept.grasps[s.grasp]["link"], joint, s.pose)
+        speed = float(np.linalg.norm(v))
+        sign = 1.0 if entry["sense"] == "opening" else -1.0
+        cos = sign * float(f @ v) / speed if speed > 1e-12 else 0.0
+        if speed <= 1e-12:
+            message = f"the grasp does not move with joint {joint}"
+        else:
+            message = (
+                f"the force drives joint {joint} against the {entry['sense']} sense "
+                f"(cosine with the grasp's motion {cos:+.3f})"
+            )
+        self._record(inst, member, s, _Measure("power", cos > 0.0, -cos, cos, 0.0, "", message))
+
+    def _check_follow(
+        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample, member: str
+    ) -> None:
+        joint = entry["joint"]
+        lo, hi = inst.joint_limits()[joint]
+        i = self.concept.moving_joints.index(joint)
+        q0 = float(inst.q[i])
+        if not math.isfinite(hi - lo):
+            lo, hi = q0 - math.pi, q0 + math.pi
+        to = float(self.rng.uniform(lo, hi))
+        path = inst.follow(action, grasp=s.pose, to=to, steps=FOLLOW_STEPS)
+        link = self.concept.function("link", self.concept.grasps[s.grasp]["link"])
+        start = inst.pose @ np.asarray(link(inst.p, inst.q), float)
+        attached = np.linalg.solve(start, s.pose)
+        drift = 0.0
+        for k, value in enumerate(np.linspace(q0, to, FOLLOW_STEPS)):
+            q = inst.q.copy()
+            q[i] = value
+            want = inst.pose @ np.asarray(link(inst.p, q), float) @ attached
+            drift = max(drift, float(np.abs(path[k] - want).max()))
+        message = (
+            f"the followed grasp drifts {drift:.2e} from its link as {joint} moves to {to:.4g}"
+        )
+        self._record(inst, member, s, _at_most("follow", drift, ATTACHED, "", message))
+
+
+def _action_grasps(concept: Concept, entry: Mapping[str, Any]) -> list[str]:
+    """The grasps an action is performed with: its ``using``, else those on the link it moves
+    (every grasp for an action along a fixed direction)."""
+    if entry["using"]:
+        return list(entry["using"])
+    if entry["joint"] is None:
+        return list(concept.grasps)
+    child = concept.joints[entry["joint"]]["child"]
+    return [n for n, g in concept.grasps.items() if g["link"] == child]
+
+
+def _grasp_velocity(inst: Instance, link: str, joint: str, grasp: np.ndarray) -> np.ndarray:
+    """World velocity of the grasp's origin, carried by ``link``, per unit of ``joint``'s value
+    (central difference of the link pose; the link functions are smooth past the limits)."""
+    fn = inst.concept.function("link", link)
+    i = inst.concept.moving_joints.index(joint)
+    h = 1e-6
+    dq = np.zeros_like(inst.q)
+    dq[i] = h
+    at = np.linalg.solve(inst.pose @ np.asarray(fn(inst.p, inst.q), float), grasp[:, 3])
+    ahead = np.asarray(fn(inst.p, inst.q + dq), float)
+    behind = np.asarray(fn(inst.p, inst.q - dq), float)
+    return (inst.pose @ ((ahead - behind) @ at))[:3] / (2 * h)
+
+
+def _material_width(
+    geo: _Geometry, held: list[str], origin: np.ndarray, y: np.ndarray, gripper: Gripper
+) -> float:
+    """Width of the material the pads would close on: the run of points inside the part along
+    +y through the origin nearest to it (0 when there is none within the hand's reach)."""
+    step = 2.5e-4
+    reach = max(gripper.max_width, 0.01)
+    t = np.arange(-reach, reach + step / 2, step)
+    inside = geo.sdf(origin + t[:, None] * y, held) <= 0
+    if not inside.any():
+        return 0.0
+    idx = np.flatnonzero(inside)
+    centre = int(idx[np.argmin(np.abs(t[idx]))])
+    lo = hi = centre
+    while lo > 0 and inside[lo - 1]:
+        lo -= 1
+    while hi < len(t) - 1 and inside[hi + 1]:
+        hi += 1
+    return float(t[hi] - t[lo] + step)
+
+
+# ---- display -----------------------------------------------------------------------------------
+
+
+def _joint_dim(concept: Concept, joint: str) -> str:
+    return "length" if concept.joints[joint]["kind"] == "prismatic" else "angle"
+
+
+def _display(inst: Instance, grasp: str | None, free: Mapping[str, float]) -> dict[str, str]:
+    """Parameters, joint values (``q.<joint>``) and free grasp parameters as people read them."""
+    c = inst.concept
+    out: dict[str, str] = {}
+    values = inst.params
+    for p in c.params:
+        v = values[p.name]
+        if isinstance(v, str):
+            out[p.name] = f'"{v}"'
+        else:
+            out[p.name] = str(v) if p.kind == "bool" else format_si(v, p.dim)
+    for name, q in zip(c.moving_joints, inst.q):
+        out[f"q.{name}"] = format_si(q, _joint_dim(c, name))
+    if grasp is not None:
+        dims = {f["name"]: f.get("dim") for f in c.grasps[grasp]["free"]}
+        for k, v in free.items():
+            out[k] = format_si(v, dims.get(k))
+    return out
+
+
+def _si(inst: Instance, free: Mapping[str, float]) -> dict[str, Any]:
+    """The same values in SI, JSON-ready: ``concept.instantiate(pose=..., joints=..., **params)``
+    and ``inst.grasp(name, **free)`` reproduce the failure."""
+    params = {k: list(v) if isinstance(v, tuple) else v for k, v in inst.params.items()}
+    joints = {n: float(q) for n, q in zip(inst.concept.moving_joints, inst.q)}
+    return {
+        "params": params,
+        "joints": joints,
+        "free": {k: float(v) for k, v in free.items()},
+        "pose": inst.pose.tolist(),
+    }
+
+
+def summarize(failures: Iterable[Failure]) -> list[tuple[Failure, int]]:
+    """The worst failure of each (concept, check, member) and how many draws failed it."""
+    groups: dict[tuple[str, str, str], list[Failure]] = {}
+    for f in failures:
+        groups.setdefault((f.concept, f.check, f.member), []).append(f)
+    out = []
+    for fs in groups.values():
+        worst = max(fs, key=_badness)
+        out.append((worst, len(fs)))
+    return out
+
+
+def _badness(f: Failure) -> float:
+    """How far a failure is from passing, in its own unit (larger is worse)."""
+    if f.check in ("power", "into"):
+        return -f.value if f.check == "power" else f.value
+    if f.check == "width":
+        return max(f.value - f.limit, -f.value)
+    return f.value - f.limit
