@@ -1,8 +1,9 @@
 """Watertight, outward-oriented triangle meshes of the primitives in their own frames.
 
-Boxes, spheres, capsules and cones come from trimesh's generators; everything whose cross-section
-is planar in xy (sectors, tubes, rings, frames) is one 2D cap triangulation extruded along z, so
-sectors of any angle share one code path.
+Boxes, spheres, capsules, cones and spherical caps come from trimesh's generators; everything
+whose cross-section is planar in xy (sectors, tubes, rings, frames, polygons) is one 2D cap
+triangulation extruded along z, so sectors of any angle share one code path. The tapered box is
+the convex hull of its corners; the torus segment is a circle swept along an arc.
 """
 
 from __future__ import annotations
@@ -16,8 +17,16 @@ import trimesh
 from numpy.typing import NDArray
 
 from grace_dsl.geometry.errors import GeometryError
-from grace_dsl.geometry.primitives import FULL_TURN, PRIMITIVES, Params, Value, validate
-from grace_dsl.geometry.props import bounds
+from grace_dsl.geometry.primitives import (
+    FULL_TURN,
+    LENGTH_KINDS,
+    PRIMITIVES,
+    Params,
+    Value,
+    validate,
+)
+from grace_dsl.geometry.props import bounds, cap_base_radius, prism_vertices
+from grace_dsl.geometry.sdf import taper_corners
 
 DEFAULT_RESOLUTION = 64  # segments per full circle: volume error ~0.2 % (sphere ~0.3 %)
 _FULL_TOL = 1e-9
@@ -132,6 +141,71 @@ def _frustum(p: Params, res: int) -> trimesh.Trimesh:
     return trimesh.creation.revolve(np.array(profile + [[0.0, h / 2]]), sections=res)
 
 
+def _tapered_cuboid(p: Params, res: int) -> trimesh.Trimesh:
+    """The hull of the eight corners: exact (planar faces), and a top of zero width or depth
+    (a wedge or a pyramid) merges corners instead of leaving slivers."""
+    corners = np.array(list(taper_corners(p).values()))
+    return trimesh.convex.convex_hull(corners)
+
+
+def _spherical_cap(p: Params, res: int) -> trimesh.Trimesh:
+    """Revolve the profile: the flat face's radius, then the arc from the rim to the pole.
+
+    The arc gets its share of ``res`` segments per full circle but at least res/4: a chord's
+    sag relative to a thin cap's height is about 1/(4 n^2) whatever the cap's angle."""
+    r, h = _f(p["radius"]), _f(p["height"])
+    zc = h / 2 - r  # the ball's centre
+    polar = math.acos(max(-1.0, min(1.0, (r - h) / r)))  # from the pole to the rim
+    n = max(2, _segments(res, polar), math.ceil(res / 4))
+    a = polar * np.arange(n, -1, -1) / n  # rim first, pole last
+    arc = np.column_stack([r * np.sin(a), zc + r * np.cos(a)])
+    arc[-1, 0] = 0.0
+    w = cap_base_radius(r, h)  # 0 for the whole ball: the profile starts at the south pole
+    profile = np.vstack([[[0.0, -h / 2]] + ([[w, -h / 2]] if w > 0 else []), arc[1:]])
+    return trimesh.creation.revolve(profile, sections=res)
+
+
+def _torus(p: Params, res: int) -> trimesh.Trimesh:
+    """A ``res``-gon tube swept along the arc (its share of ``res``), capped by two fans.
+
+    Vertex (u, v) is ((R + r cos v) cos u, (R + r cos v) sin u, r sin v); quads (u, v) ->
+    (u + du, v) -> (u + du, v + dv) turn by d/du x d/dv, the outward normal."""
+    big, small, ang = _f(p["r_major"]), _f(p["r_minor"]), _f(p["radian"])
+    full = ang >= FULL_TURN - _FULL_TOL
+    n, m = _segments(res, ang), res
+    u = -math.pi / 2 - ang / 2 + ang * np.arange(n if full else n + 1) / n
+    v = FULL_TURN * np.arange(m) / m
+    rho = big + small * np.cos(v)
+    ring = len(u)
+    verts = np.column_stack(
+        [
+            (np.cos(u)[:, None] * rho[None, :]).ravel(),
+            (np.sin(u)[:, None] * rho[None, :]).ravel(),
+            np.tile(small * np.sin(v), ring),
+        ]
+    )
+    k, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
+    a = k * m + j
+    b = ((k + 1) % ring) * m + j
+    a1, b1 = k * m + (j + 1) % m, ((k + 1) % ring) * m + (j + 1) % m
+    faces = [np.column_stack([a.ravel(), b.ravel(), b1.ravel()])]
+    faces.append(np.column_stack([a.ravel(), b1.ravel(), a1.ravel()]))
+    if not full:
+        centres = np.array([[big * math.cos(e), big * math.sin(e), 0.0] for e in (u[0], u[-1])])
+        c0, c1 = len(verts), len(verts) + 1
+        verts = np.vstack([verts, centres])
+        faces.append(_fan(c0, 0, m, True))  # normal -d/du: out of the start
+        faces.append(_fan(c1, (ring - 1) * m, m, True)[:, ::-1])
+    return trimesh.Trimesh(verts, np.vstack(faces), process=True)
+
+
+def _prism(p: Params, res: int) -> trimesh.Trimesh:
+    """Exact: the polygon is its own mesh (``res`` does not apply)."""
+    corners = prism_vertices(round(_f(p["sides"])), _f(p["radius"]))
+    v2 = np.vstack([np.zeros((1, 2)), corners])
+    return _extrude(v2, _fan(0, 1, len(v2) - 1, True), _f(p["height"]))
+
+
 def _f(v: Any) -> float:
     return float(v)
 
@@ -149,6 +223,10 @@ BUILDERS: dict[str, Callable[[Params, int], trimesh.Trimesh]] = {
     "Sphere": _sphere,
     "Capsule": _capsule,
     "Frustum": _frustum,
+    "TaperedCuboid": _tapered_cuboid,
+    "SphericalCap": _spherical_cap,
+    "Torus": _torus,
+    "Prism": _prism,
 }
 
 
@@ -167,7 +245,7 @@ def primitive_mesh(
     # at the poles: build at unit size and scale.
     scale = float(np.ptp(bounds(name, p), axis=0).max())
     unit = {
-        k: _scaled(v, 1 / scale) if kind != "angle" else v
+        k: _scaled(v, 1 / scale) if kind in LENGTH_KINDS else v
         for (k, v), kind in zip(p.items(), (ps.kind for ps in PRIMITIVES[name].params))
     }
     mesh = BUILDERS[name](unit, resolution)

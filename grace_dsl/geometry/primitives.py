@@ -16,8 +16,8 @@ import numpy as np
 
 from grace_dsl.geometry.errors import GeometryError
 
-Kind = Literal["length", "angle", "vec2", "vec3"]
-Value = float | tuple[float, ...]
+Kind = Literal["length", "angle", "int", "vec2", "vec3"]
+Value = float | int | tuple[float, ...]
 Params = dict[str, Value]
 
 FULL_TURN = 2.0 * math.pi
@@ -26,12 +26,14 @@ _ANGLE_SLACK = 1e-9  # 360deg converted through degrees may land a hair above 2*
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter: name, kind and default (SI); a length may be zero only if ``allow_zero``."""
+    """One parameter: name, kind and default (SI); a length may be zero only if ``allow_zero``,
+    negative only if ``signed`` (a shift, not a size)."""
 
     name: str
     kind: Kind
     default: Value
     allow_zero: bool = False
+    signed: bool = False
 
     @property
     def size(self) -> int:
@@ -54,8 +56,10 @@ class PrimitiveSpec:
         return {p.name: p.default for p in self.params}
 
 
-def _p(name: str, kind: Kind, default: Value, allow_zero: bool = False) -> ParamSpec:
-    return ParamSpec(name, kind, default, allow_zero)
+def _p(
+    name: str, kind: Kind, default: Value, allow_zero: bool = False, signed: bool = False
+) -> ParamSpec:
+    return ParamSpec(name, kind, default, allow_zero, signed)
 
 
 def _f(params: Params, name: str) -> float:
@@ -68,6 +72,15 @@ def _v(params: Params, name: str) -> tuple[float, ...]:
     value = params[name]
     assert isinstance(value, tuple)
     return value
+
+
+def _i(params: Params, name: str) -> int:
+    value = params[name]
+    assert isinstance(value, int)
+    return value
+
+
+LENGTH_KINDS = ("length", "vec2", "vec3")  # the kinds that scale with the primitive
 
 
 PRIMITIVES: dict[str, PrimitiveSpec] = {
@@ -127,6 +140,43 @@ PRIMITIVES: dict[str, PrimitiveSpec] = {
                 ),
             ),
         ),
+        PrimitiveSpec(
+            "TaperedCuboid",
+            (
+                _p("size", "vec3", (0.1, 0.1, 0.1)),
+                _p("top", "vec2", (0.06, 0.06), allow_zero=True),
+                _p("offset", "vec2", (0.0, 0.0), allow_zero=True, signed=True),
+            ),
+        ),
+        PrimitiveSpec(
+            "SphericalCap",
+            (_p("radius", "length", 0.02), _p("height", "length", 0.01)),
+            (
+                (
+                    lambda q: _f(q, "height") <= 2 * _f(q, "radius"),
+                    "height <= 2 * radius (a cap is at most the whole ball)",
+                ),
+            ),
+        ),
+        PrimitiveSpec(
+            "Torus",
+            (
+                _p("r_major", "length", 0.04),
+                _p("r_minor", "length", 0.005),
+                _p("radian", "angle", FULL_TURN),
+            ),
+            (
+                (
+                    lambda q: _f(q, "r_minor") < _f(q, "r_major"),
+                    "r_minor < r_major (the tube must not reach the axis)",
+                ),
+            ),
+        ),
+        PrimitiveSpec(
+            "Prism",
+            (_p("sides", "int", 6), _p("radius", "length", 0.02), _p("height", "length", 0.02)),
+            ((lambda q: _i(q, "sides") >= 3, "sides >= 3 (a polygon has at least three)"),),
+        ),
     )
 }
 
@@ -163,6 +213,12 @@ def _check_value(prim: str, ps: ParamSpec, raw: Any) -> Value:
         raise GeometryError(f"{where} must be {shape}, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise GeometryError(f"{where} must be finite, got {raw!r}")
+    if ps.kind == "int":
+        if isinstance(raw, bool) or arr.item() != round(arr.item()):
+            raise GeometryError(f"{where} must be a whole number, got {raw!r}")
+        return int(round(arr.item()))
+    if ps.signed:
+        return tuple(float(a) for a in arr.ravel()) if ps.size > 1 else float(arr.item())
     if np.any(arr < 0) or (not ps.allow_zero and np.any(arr == 0)):
         bound = ">= 0" if ps.allow_zero else "> 0"
         raise GeometryError(f"{where} must be {bound} (SI units: metres, radians), got {raw!r}")

@@ -16,6 +16,24 @@ def _fl(v: Any) -> float:
     return float(v)
 
 
+def _tapered_volume(p: Params) -> float:
+    """Prismatoid rule h/6 (A_bottom + 4 A_middle + A_top): exact, the section area being
+    quadratic in y; the offset shears the solid without changing its volume (Cavalieri)."""
+    (sx, h, sz), (tx, tz) = p["size"], p["top"]  # type: ignore[misc]
+    return h / 6 * (sx * sz + tx * tz + (sx + tx) * (sz + tz))
+
+
+def cap_base_radius(radius: float, height: float) -> float:
+    """Radius of the flat face of a spherical cap: sqrt(h (2R - h))."""
+    return math.sqrt(max(height * (2 * radius - height), 0.0))
+
+
+def prism_vertices(sides: int, radius: float) -> NDArray[np.float64]:
+    """The (sides, 2) xy corners of the regular polygon with one edge centred on -y."""
+    a = (2 * np.arange(sides) + 1) * math.pi / sides  # measured from -y towards +x
+    return radius * np.column_stack([np.sin(a), -np.cos(a)])
+
+
 VOLUMES: dict[str, Callable[[Params], float]] = {
     "Cuboid": lambda p: float(np.prod(p["size"])),
     "Cylinder": lambda p: _fl(p["radian"]) / 2 * _fl(p["radius"]) ** 2 * _fl(p["height"]),
@@ -36,6 +54,20 @@ VOLUMES: dict[str, Callable[[Params], float]] = {
         / 3
         * (_fl(p["r_bottom"]) ** 2 + _fl(p["r_bottom"]) * _fl(p["r_top"]) + _fl(p["r_top"]) ** 2)
     ),
+    "TaperedCuboid": _tapered_volume,
+    "SphericalCap": lambda p: (
+        math.pi * _fl(p["height"]) ** 2 * (3 * _fl(p["radius"]) - _fl(p["height"])) / 3
+    ),
+    "Torus": lambda p: (  # Pappus: the tube's section swept along its centre circle
+        _fl(p["radian"]) * _fl(p["r_major"]) * math.pi * _fl(p["r_minor"]) ** 2
+    ),
+    "Prism": lambda p: (
+        _fl(p["sides"])
+        / 2
+        * _fl(p["radius"]) ** 2
+        * math.sin(FULL_TURN / _fl(p["sides"]))
+        * _fl(p["height"])
+    ),
 }
 
 
@@ -55,6 +87,40 @@ def _sector_xy(r_in: float, r_out: float, ang: float, axis: float) -> tuple[Any,
     pts += [(r_in * math.cos(a), r_in * math.sin(a)) for a in (a0, a1)]
     arr = np.array(pts)
     return arr.min(axis=0), arr.max(axis=0)
+
+
+def _tapered_bounds(p: Params) -> NDArray[np.float64]:
+    (sx, h, sz), top, off = (np.asarray(p[k], dtype=float) for k in ("size", "top", "offset"))
+    lo = [min(-sx / 2, off[0] - top[0] / 2), -h / 2, min(-sz / 2, off[1] - top[1] / 2)]
+    hi = [max(sx / 2, off[0] + top[0] / 2), h / 2, max(sz / 2, off[1] + top[1] / 2)]
+    return np.array([lo, hi])
+
+
+def _cap_bounds(p: Params) -> NDArray[np.float64]:
+    r, h = _fl(p["radius"]), _fl(p["height"])
+    half = cap_base_radius(r, h) if h <= r else r  # past the equator the ball is widest
+    return np.array([[-half, -half, -h / 2], [half, half, h / 2]])
+
+
+def _torus_bounds(p: Params) -> NDArray[np.float64]:
+    """The xy shadow is the annular sector R - r <= rho <= R + r (the end disks are radial)."""
+    big, small = _fl(p["r_major"]), _fl(p["r_minor"])
+    lo, hi = _sector_xy(big - small, big + small, _fl(p["radian"]), -math.pi / 2)
+    return np.array([[lo[0], lo[1], -small], [hi[0], hi[1], small]])
+
+
+def _prism_bounds(p: Params) -> NDArray[np.float64]:
+    v = prism_vertices(round(_fl(p["sides"])), _fl(p["radius"]))
+    h = _fl(p["height"]) / 2
+    return np.array([[*v.min(axis=0), -h], [*v.max(axis=0), h]])
+
+
+_BOUNDS: dict[str, Callable[[Params], NDArray[np.float64]]] = {
+    "TaperedCuboid": _tapered_bounds,
+    "SphericalCap": _cap_bounds,
+    "Torus": _torus_bounds,
+    "Prism": _prism_bounds,
+}
 
 
 def bounds(name: str, params: Mapping[str, Any]) -> NDArray[np.float64]:
@@ -78,6 +144,8 @@ def bounds(name: str, params: Mapping[str, Any]) -> NDArray[np.float64]:
     if name == "Capsule":
         r, h = _fl(p["radius"]), _fl(p["length"]) / 2 + _fl(p["radius"])
         return np.array([[-r, -r, -h], [r, r, h]])
+    if name in _BOUNDS:
+        return _BOUNDS[name](p)
     r = max(_fl(p["r_bottom"]), _fl(p["r_top"]))
     h = _fl(p["height"]) / 2
     return np.array([[-r, -r, -h], [r, r, h]])
@@ -86,24 +154,28 @@ def bounds(name: str, params: Mapping[str, Any]) -> NDArray[np.float64]:
 def affordances(name: str, params: Mapping[str, Any]) -> dict[str, Any]:
     """Simple grasp hints in the primitive's frame (a starting point, not a grasp planner).
 
-    - ``principal_axis``: unit vector along which a hand would slide: the axis of revolution,
-      the tangent of a ring's arc at its middle (x), or the longest side of a box or frame.
+    - ``principal_axis``: unit vector along which a hand would slide: the axis of revolution or
+      of a prism, the tangent of a ring's or torus's arc at its middle (x), or the longest side
+      of a box, tapered box or frame.
     - ``graspable_width``: the width the fingers close across when grasping around that axis:
-      the smallest bounding-box extent across the axis, or for rings and frames their bar.
+      the smallest bounding-box extent across the axis (for a prism: across flats, or from a
+      face to the opposite corner), or for rings, tori and frames their bar.
     - ``front_normal``: +z, the face a robot approaches (the frame convention of DESIGN.md).
     """
     p = validate(name, params)
     lo, hi = bounds(name, p)
     extent = hi - lo
-    if name in ("Cylinder", "Tube", "Capsule", "Frustum", "Sphere"):
+    if name in ("Cylinder", "Tube", "Capsule", "Frustum", "Sphere", "SphericalCap", "Prism"):
         axis = 2
-    elif name == "Ring":
+    elif name in ("Ring", "Torus"):
         axis = 0
     else:
         axis = int(np.argmax(extent))
     width = float(min(extent[i] for i in range(3) if i != axis))
     if name == "Ring":
         width = min(_fl(p["r_out"]) - _fl(p["r_in"]), _fl(p["height"]))
+    elif name == "Torus":
+        width = 2 * _fl(p["r_minor"])
     elif name == "RectRing":
         bar = (np.asarray(p["outer"]) - np.asarray(p["inner"])) / 2
         width = min(float(bar[1 - axis]), _fl(p["depth"]))

@@ -1,8 +1,9 @@
 """Area-weighted surface samples with exact normals, drawn face by face from the analytic surface.
 
 Sampling the mesh would put points on chords of curved faces (off the true surface by up to
-r(1 - cos(pi/n))); here every face type (rectangle, annular sector, cylinder side, sphere,
-cone side) is sampled in closed form, so |sdf| of a sample is round-off.
+r(1 - cos(pi/n))); here every face type (rectangle, triangle, annular sector, cylinder side,
+sphere, spherical zone, cone side, torus) is sampled in closed form, so |sdf| of a sample is
+round-off.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from numpy.typing import NDArray
 
 from grace_dsl.geometry.errors import GeometryError
 from grace_dsl.geometry.primitives import FULL_TURN, Params, validate
+from grace_dsl.geometry.props import cap_base_radius, prism_vertices
+from grace_dsl.geometry.sdf import TAPER_FACES, NumpyOps, taper_corners, taper_normals
 
 Arr = NDArray[np.float64]
 Draw = Callable[[np.random.Generator, int], tuple[Arr, Arr]]
@@ -31,6 +34,21 @@ def _rect(origin: Any, e1: Any, e2: Any, normal: Any) -> Patch:
         return o + uv[:, :1] * a + uv[:, 1:] * b, np.tile(nrm, (k, 1))
 
     return float(np.linalg.norm(a) * np.linalg.norm(b)), draw
+
+
+def _triangle(a: Any, b: Any, c: Any, normal: Any) -> Patch:
+    """A flat triangle; folding the unit square onto it keeps the density uniform."""
+    o, e1, e2, nrm = (
+        np.asarray(v, dtype=float) for v in (a, np.subtract(b, a), np.subtract(c, a), normal)
+    )
+
+    def draw(rng: np.random.Generator, k: int) -> tuple[Arr, Arr]:
+        uv = rng.random((k, 2))
+        flip = uv.sum(axis=1) > 1
+        uv[flip] = 1 - uv[flip]
+        return o + uv[:, :1] * e1 + uv[:, 1:] * e2, np.tile(nrm, (k, 1))
+
+    return float(np.linalg.norm(np.cross(e1, e2)) / 2), draw
 
 
 def _sector_cap(r_in: float, r_out: float, a0: float, span: float, z: float, nz: float) -> Patch:
@@ -88,6 +106,98 @@ def _cone_side(r1: float, r2: float, h: float) -> Patch:
         return pts, np.column_stack([n_r * c, n_r * s, np.full(k, n_z)])
 
     return math.pi * (r1 + r2) * slant, draw
+
+
+def _zone(r: float, zc: float, z_lo: float) -> Patch:
+    """The sphere of radius r centred at (0, 0, zc) above z = z_lo: Archimedes' hat-box theorem
+    makes the area uniform in z, so z and the azimuth are drawn uniformly."""
+    lo = max(-1.0, min(1.0, (z_lo - zc) / r))
+
+    def draw(rng: np.random.Generator, k: int) -> tuple[Arr, Arr]:
+        c = rng.uniform(lo, 1.0, k)
+        s = np.sqrt(np.maximum(1 - c * c, 0.0))
+        a = FULL_TURN * rng.random(k)
+        d = np.column_stack([s * np.cos(a), s * np.sin(a), c])
+        return d * r + [0.0, 0.0, zc], d
+
+    return FULL_TURN * r * r * (1 - lo), draw
+
+
+def _torus_side(big: float, small: float, a0: float, span: float) -> Patch:
+    """The tube's surface over the arc a0..a0+span; the area element r (R + r cos v) du dv is
+    drawn by rejection (acceptance >= (R - r) / (R + r)), repeating until k points are kept."""
+
+    def draw(rng: np.random.Generator, k: int) -> tuple[Arr, Arr]:
+        v = np.empty(0)
+        while len(v) < k:
+            cand = FULL_TURN * rng.random(2 * (k - len(v)) + 8)
+            keep = rng.random(len(cand)) * (big + small) < big + small * np.cos(cand)
+            v = np.concatenate([v, cand[keep]])
+        v = v[:k]
+        u = a0 + span * rng.random(k)
+        d = np.column_stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)])
+        centre = big * np.column_stack([np.cos(u), np.sin(u), np.zeros(k)])
+        return centre + small * d, d
+
+    return span * FULL_TURN * small * big, draw
+
+
+def _torus_end(big: float, small: float, a: float, sign: float) -> Patch:
+    """The disk closing a torus segment at arc angle a; normal ``sign`` * d/du (tangent)."""
+    radial, tangent = (
+        np.array([math.cos(a), math.sin(a), 0.0]),
+        np.array([-math.sin(a), math.cos(a), 0.0]),
+    )
+
+    def draw(rng: np.random.Generator, k: int) -> tuple[Arr, Arr]:
+        rho = small * np.sqrt(rng.random(k))
+        t = FULL_TURN * rng.random(k)
+        pts = (big + rho * np.cos(t))[:, None] * radial + np.outer(rho * np.sin(t), [0.0, 0.0, 1.0])
+        return pts, np.tile(sign * tangent, (k, 1))
+
+    return math.pi * small * small, draw
+
+
+def _torus(p: Params) -> list[Patch]:
+    big, small, ang = _fl(p["r_major"]), _fl(p["r_minor"]), _fl(p["radian"])
+    a0 = -math.pi / 2 - ang / 2
+    patches = [_torus_side(big, small, a0, ang)]
+    if ang < FULL_TURN - _FULL_TOL:
+        patches += [_torus_end(big, small, a0, -1.0), _torus_end(big, small, a0 + ang, 1.0)]
+    return patches
+
+
+def _spherical_cap(p: Params) -> list[Patch]:
+    r, h = _fl(p["radius"]), _fl(p["height"])
+    return [
+        _zone(r, h / 2 - r, -h / 2),
+        _sector_cap(0.0, cap_base_radius(r, h), 0.0, FULL_TURN, -h / 2, -1.0),
+    ]
+
+
+def _tapered_cuboid(p: Params) -> list[Patch]:
+    """Each planar face (a trapezoid; a triangle or segment where the top has no width) as two
+    triangles, with the formula's own unit normals."""
+    corners, normals = taper_corners(p), taper_normals(NumpyOps, p)
+    out = []
+    for quad, nrm in zip(TAPER_FACES, normals):
+        a, b, c, d = (corners[k] for k in quad)
+        out += [_triangle(a, b, c, nrm), _triangle(a, c, d, nrm)]
+    return out
+
+
+def _prism(p: Params) -> list[Patch]:
+    h = _fl(p["height"])
+    v = prism_vertices(round(_fl(p["sides"])), _fl(p["radius"]))
+    out = []
+    for k in range(len(v)):
+        a, b = v[k], v[(k + 1) % len(v)]
+        for z, nz in ((h / 2, 1.0), (-h / 2, -1.0)):
+            out.append(_triangle([0.0, 0.0, z], [*a, z], [*b, z], [0.0, 0.0, nz]))
+        edge = b - a
+        nrm = np.array([edge[1], -edge[0], 0.0]) / np.linalg.norm(edge)  # vertices go CCW
+        out.append(_rect([*a, -h / 2], [*edge, 0.0], [0.0, 0.0, h], nrm))
+    return out
 
 
 def _prism_of_sector(r_in: float, r_out: float, ang: float, axis: float, h: float) -> list[Patch]:
@@ -182,6 +292,10 @@ PATCHES: dict[str, Callable[[Params], list[Patch]]] = {
         _ball(_fl(p["radius"]), -_fl(p["length"]) / 2, -1.0),
     ],
     "Frustum": _frustum,
+    "TaperedCuboid": _tapered_cuboid,
+    "SphericalCap": _spherical_cap,
+    "Torus": _torus,
+    "Prism": _prism,
 }
 
 

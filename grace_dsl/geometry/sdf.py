@@ -3,8 +3,10 @@
 Each formula is a function of an ``Ops`` backend (numpy arrays or CasADi expressions) so the
 two versions cannot drift apart; the CasADi one is differentiable in the parameters, which the
 model fitting needs. All distances are exact (Inigo Quilez's closed forms, adapted to the frames
-of ``primitives.eac``): boxes, spheres, capsules, capped cones, and 2D cross-sections (disk,
-circular sector, annulus, annular sector, box-minus-box) extruded exactly along z.
+of ``primitives.eac``): boxes, spheres, capsules, capped cones, spherical caps, torus segments,
+2D cross-sections (disk, circular sector, annulus, annular sector, box-minus-box, regular
+polygon) extruded exactly along z, and the tapered box as a convex polytope (nearest face, edge
+or corner).
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ class NumpyOps:
     cos = staticmethod(np.cos)
     sign = staticmethod(np.sign)
     where = staticmethod(np.where)
+    atan2 = staticmethod(np.arctan2)
+    floor = staticmethod(np.floor)
 
     @staticmethod
     def sqrt0(s: Any) -> Any:
@@ -53,6 +57,8 @@ class CasadiOps:
     cos = staticmethod(ca.cos)
     sign = staticmethod(ca.sign)
     where = staticmethod(ca.if_else)
+    atan2 = staticmethod(ca.atan2)
+    floor = staticmethod(ca.floor)
 
     @staticmethod
     def sqrt0(s: Any) -> Any:
@@ -154,6 +160,156 @@ def _frustum(o: Ops, x: Any, y: Any, z: Any, p: Mapping[str, Any]) -> Any:
     return sign * o.sqrt0(o.min(ax * ax + ay * ay, bx * bx + by * by))
 
 
+def _sphere_cap(o: Ops, x: Any, y: Any, z: Any, p: Mapping[str, Any]) -> Any:
+    """The ball above the plane z' = c = R - h (z' from the ball's centre, at z = h/2 - R).
+
+    The solid is convex, so its distance is the distance to whichever of ball and plane owns the
+    projection: ``max(|q| - R, c - z')`` unless the point lies in the rim circle's normal cone
+    (beyond the rim: rho > w and c rho - w z' > 0), where it is the distance to the rim.
+    """
+    big, h = p["radius"], p["height"]
+    c = big - h
+    w = o.sqrt0(h * (2 * big - h))  # radius of the flat face
+    zc = z - h / 2 + big
+    rho = _norm(o, x, y)
+    rim = _norm(o, rho - w, zc - c)
+    body = o.max(_norm(o, rho, zc) - big, c - zc)
+    return o.where(o.min(rho - w, c * rho - w * zc) > 0, rim, body)
+
+
+def _torus(o: Ops, x: Any, y: Any, z: Any, p: Mapping[str, Any]) -> Any:
+    """A torus about z cut to the wedge ``radian`` centred on -y by two planes through the axis.
+
+    Like the annular sector: max of the whole torus and the signed distance to the nearer end
+    disk (folded to x >= 0), which lies in the half-plane of direction (sin half, cos half)
+    about -y: ``s`` is the distance beyond that plane, ``t`` the position along it.
+    """
+    big, small, ang = p["r_major"], p["r_minor"], p["radian"]
+    torus = _norm(o, _norm(o, x, y) - big, z) - small
+    half = o.min(ang, FULL_TURN) / 2
+    ax, u, sa, co = o.abs(x), -y, o.sin(half), o.cos(half)
+    s = co * ax - sa * u
+    t = sa * ax + co * u
+    disk = o.max(_norm(o, t - big, z) - small, 0)  # distance within the end's plane
+    cap = _norm(o, s, disk) * o.sign(s)
+    return o.where(ang >= FULL_TURN - _FULL_TOL, torus, o.max(torus, cap))
+
+
+def _polygon(o: Ops, x: Any, y: Any, n: Any, r: Any) -> Any:
+    """Quilez's exact regular n-gon of circumradius r, turned so that an edge is centred on -y:
+    fold the angle from -y into one edge's sector, then the distance to that edge segment."""
+    an = np.pi / n
+    theta = o.atan2(x, -y) + an + FULL_TURN  # > 0, so floor splits it into sectors
+    bn = theta - 2 * an * o.floor(theta / (2 * an)) - an  # in [-an, an), 0 at an edge's middle
+    rho = _norm(o, x, y)
+    px = rho * o.cos(bn) - r * o.cos(an)
+    py = rho * o.abs(o.sin(bn)) - r * o.sin(an)
+    py = py + o.clip(-py, 0, r * o.sin(an))
+    return _norm(o, px, py) * o.sign(px)
+
+
+def _prism(o: Ops, x: Any, y: Any, z: Any, p: Mapping[str, Any]) -> Any:
+    return _extrude(o, _polygon(o, x, y, p["sides"], p["radius"]), z, p["height"] / 2)
+
+
+Vec3 = tuple[Any, Any, Any]
+
+
+def _sub(a: Vec3, b: Vec3) -> Vec3:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _dot(a: Vec3, b: Vec3) -> Any:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec3, b: Vec3) -> Vec3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _fold(op: Callable[[Any, Any], Any], values: list[Any]) -> Any:
+    out = values[0]
+    for v in values[1:]:
+        out = op(out, v)
+    return out
+
+
+def _segment(o: Ops, q: Vec3, a: Vec3, b: Vec3) -> Any:
+    """Distance from q to the segment ab (a point when a == b)."""
+    e, v = _sub(b, a), _sub(q, a)
+    t = o.clip(_dot(v, e) / o.max(_dot(e, e), 1e-300), 0, 1)
+    return _norm(o, v[0] - t * e[0], v[1] - t * e[1], v[2] - t * e[2])
+
+
+# The faces of the tapered box as corner indices (i = x-sign, j = z-sign, k = 0 bottom / 1 top),
+# counter-clockwise seen from outside, and the unit outward normals' index in ``_taper_faces``.
+TAPER_FACES = (
+    ((1, -1, 0), (1, -1, 1), (1, 1, 1), (1, 1, 0)),  # +x
+    ((-1, -1, 0), (-1, 1, 0), (-1, 1, 1), (-1, -1, 1)),  # -x
+    ((-1, -1, 1), (-1, 1, 1), (1, 1, 1), (1, -1, 1)),  # top (+y)
+    ((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)),  # bottom (-y)
+    ((-1, 1, 0), (1, 1, 0), (1, 1, 1), (-1, 1, 1)),  # +z
+    ((-1, -1, 0), (-1, -1, 1), (1, -1, 1), (1, -1, 0)),  # -z
+)
+
+
+def taper_corners(p: Mapping[str, Any]) -> dict[tuple[int, int, int], Vec3]:
+    """The eight corners: the bottom rectangle ``size.x`` by ``size.z`` at y = -size.y/2 and the
+    top one ``top`` at y = +size.y/2, shifted by ``offset`` (x, z)."""
+    size, top, off = p["size"], p["top"], p["offset"]
+    out: dict[tuple[int, int, int], Vec3] = {}
+    for i in (-1, 1):
+        for j in (-1, 1):
+            out[(i, j, 0)] = (i * size[0] / 2, -size[1] / 2, j * size[2] / 2)
+            out[(i, j, 1)] = (off[0] + i * top[0] / 2, size[1] / 2, off[1] + j * top[1] / 2)
+    return out
+
+
+def taper_normals(o: Ops, p: Mapping[str, Any]) -> tuple[Vec3, ...]:
+    """Unit outward normals of the faces of ``TAPER_FACES``; a side face through the bottom edge at
+    x = size.x/2 and the top edge at x = offset.x + top.x/2 leans by a = top edge - bottom edge:
+    its normal is (h, -a) / |(h, a)| in (x, y), and likewise for -x and the z sides."""
+    size, top, off = p["size"], p["top"], p["offset"]
+    h = size[1]
+    out = []
+    for axis in (0, 2):
+        t, c = top[0 if axis == 0 else 1], off[0 if axis == 0 else 1]
+        for sign in (1, -1):
+            lean = sign * c + t / 2 - size[axis] / 2
+            n = _norm(o, h, lean)
+            v = [0.0, -lean / n, 0.0]
+            v[axis] = sign * h / n
+            out.append((v[0], v[1], v[2]))
+        if axis == 0:
+            out += [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0)]
+    return tuple(out)
+
+
+def _tapered_cuboid(o: Ops, x: Any, y: Any, z: Any, p: Mapping[str, Any]) -> Any:
+    """Exact distance to a convex polytope: inside, the nearest face plane (max of the planes);
+    outside, the nearest face if the point projects into it, else the nearest edge."""
+    corners, normals, q = taper_corners(p), taper_normals(o, p), (x, y, z)
+    edges: dict[frozenset[tuple[int, int, int]], Any] = {}
+    planes, faces = [], []
+    top = p["top"]
+    for f, (quad, n) in enumerate(zip(TAPER_FACES, normals)):
+        plane = _dot(n, _sub(q, corners[quad[0]]))
+        sides, rims = [], []
+        for a, b in zip(quad, quad[1:] + quad[:1]):
+            sides.append(_dot(_cross(n, _sub(corners[b], corners[a])), _sub(q, corners[a])))
+            key = frozenset((a, b))
+            if key not in edges:
+                edges[key] = _segment(o, q, corners[a], corners[b])
+            rims.append(edges[key])
+        inside, rim = _fold(o.min, sides), _fold(o.min, rims)
+        if f == 2:  # a top of no width and no depth is a point: every edge test passes
+            inside = o.where(top[0] + top[1] > 0, inside, -1.0)
+        planes.append(plane)
+        faces.append(o.where(inside >= 0, o.abs(plane), rim))
+    deepest = _fold(o.max, planes)
+    return o.where(deepest > 0, _fold(o.min, faces), deepest)
+
+
 FORMULAS: dict[str, Formula] = {
     "Cuboid": _cuboid,
     "Cylinder": _cylinder,
@@ -163,6 +319,10 @@ FORMULAS: dict[str, Formula] = {
     "Sphere": _sphere,
     "Capsule": _capsule,
     "Frustum": _frustum,
+    "TaperedCuboid": _tapered_cuboid,
+    "SphericalCap": _sphere_cap,
+    "Torus": _torus,
+    "Prism": _prism,
 }
 
 

@@ -47,6 +47,24 @@ def params_for(draw: Any, name: str) -> dict[str, Any]:
     if name == "Frustum":
         r1, r2 = draw(st.sampled_from([(1, 1), (0, 1), (1, 0)]))
         return {"r_bottom": r1 * draw(LEN), "r_top": r2 * draw(LEN), "height": draw(LEN)}
+    if name == "TaperedCuboid":
+        size = (draw(LEN), draw(LEN), draw(LEN))
+        scale = st.one_of(st.just(0.0), st.just(1.0), st.floats(0.0, 1.5))
+        top = (size[0] * draw(scale), size[2] * draw(scale))
+        shift = st.floats(-0.5, 0.5)
+        return {"size": size, "top": top, "offset": (size[0] * draw(shift), size[2] * draw(shift))}
+    if name == "SphericalCap":
+        radius = draw(LEN)
+        return {
+            "radius": radius,
+            "height": radius * draw(st.one_of(st.just(2.0), st.floats(0.05, 2))),
+        }
+    if name == "Torus":
+        big = draw(st.floats(0.01, 0.25))
+        return {"r_major": big, "r_minor": big * draw(st.floats(0.05, 0.9)), "radian": draw(ANGLE)}
+    if name == "Prism":
+        sides = draw(st.one_of(st.integers(3, 12), st.just(64)))
+        return {"sides": sides, "radius": draw(LEN), "height": draw(LEN)}
     raise AssertionError(name)
 
 
