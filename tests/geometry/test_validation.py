@@ -50,6 +50,14 @@ def test_registry_matches_primitives_eac() -> None:
         ("RectRing", {"inner": (0.5, 0.1)}, "inner.x < outer.x"),
         ("Frustum", {"r_bottom": 0.0, "r_top": 0.0}, "one end needs a radius"),
         ("Frustum", {"r_top": -1.0}, "Frustum.r_top must be >= 0"),
+        ("TaperedCuboid", {"top": (-0.01, 0.02)}, "TaperedCuboid.top must be >= 0"),
+        ("TaperedCuboid", {"offset": (0.0, float("inf"))}, "TaperedCuboid.offset must be finite"),
+        ("SphericalCap", {"height": 0.05}, "height <= 2 * radius"),
+        ("Torus", {"r_minor": 0.04}, "r_minor < r_major"),
+        ("Torus", {"radian": 0.0}, "Torus.radian must be > 0"),
+        ("Prism", {"sides": 2.5}, "Prism.sides must be a whole number"),
+        ("Prism", {"sides": True}, "Prism.sides must be a whole number"),
+        ("Prism", {"sides": 2}, "sides >= 3"),
     ],
 )
 def test_bad_parameters_are_reported(name: str, params: dict[str, object], message: str) -> None:
@@ -62,6 +70,14 @@ def test_bad_parameters_are_reported(name: str, params: dict[str, object], messa
 def test_missing_parameters_take_the_eac_defaults() -> None:
     assert validate("Ring", {"radian": math.pi}) == {**default_params("Ring"), "radian": math.pi}
     assert math.isclose(default_params("Ring")["radian"], math.radians(120))  # type: ignore[arg-type]
+
+
+def test_shifts_may_be_negative_and_whole_floats_are_ints() -> None:
+    """The runtime passes every argument as a float: 6.0 sides is the int 6."""
+    got = validate("TaperedCuboid", {"offset": (-0.02, 0.01)})
+    assert got["offset"] == (-0.02, 0.01)
+    sides = validate("Prism", {"sides": 6.0})["sides"]
+    assert sides == 6 and isinstance(sides, int)
 
 
 def test_bad_points_and_counts() -> None:
