@@ -59,6 +59,13 @@ def _rect_ring(b: Backend, a: dict[str, Any]) -> tuple[Vec, Any]:
     return axis, b.min(bar, a["depth"])
 
 
+def _spherical_cap(b: Backend, a: dict[str, Any]) -> tuple[Vec, Any]:
+    """Across the axis: the flat face's diameter, or the ball's once the cap passes its equator."""
+    r, h = a["radius"], a["height"]
+    face = 2 * b.sqrt(b.max(h * (2 * r - h), 0.0))
+    return Z, b.if_else(b.compare(">=", h, r), 2 * r, face)
+
+
 HINTS: dict[str, Hint] = {
     "Cuboid": _cuboid,
     "RectRing": _rect_ring,
@@ -68,6 +75,8 @@ HINTS: dict[str, Hint] = {
     "Capsule": lambda b, a: (Z, 2 * a["radius"]),
     "Frustum": lambda b, a: (Z, 2 * b.max(a["r_bottom"], a["r_top"])),
     "Ring": lambda b, a: (X, b.min(a["r_out"] - a["r_in"], a["height"])),
+    "Torus": lambda b, a: (X, 2 * a["r_minor"]),
+    "SphericalCap": _spherical_cap,
 }
 
 

@@ -72,11 +72,20 @@ CASES = {
         "r_in: 40mm, r_out: 48mm, height: 12mm, radian: 120deg",
         {"r_in": 0.04, "r_out": 0.048, "height": 0.012, "radian": np.radians(120)},
     ),
+    "Torus": (
+        "r_major: 40mm, r_minor: 6mm, radian: 200deg",
+        {"r_major": 0.04, "r_minor": 0.006, "radian": np.radians(200)},
+    ),
+    "SphericalCap": ("radius: 20mm, height: 8mm", {"radius": 0.02, "height": 0.008}),
+    "TallCap": ("radius: 20mm, height: 30mm", {"radius": 0.02, "height": 0.03}),
     "RectRing": (
         "outer: (400mm, 600mm), inner: (360mm, 560mm), depth: 15mm",
         {"outer": (0.4, 0.6), "inner": (0.36, 0.56), "depth": 0.015},
     ),
 }
+
+
+PRIMITIVE = {"TallCap": "SphericalCap"}
 
 
 @pytest.fixture(scope="module")
@@ -85,9 +94,10 @@ def cued(tmp_path_factory: pytest.TempPathFactory) -> eac.Library:
     with grasps that expose every cue: origin = center, axes = (principal_axis, front_normal)."""
     root = tmp_path_factory.mktemp("cues")
     text = HEADER
-    for prim, (args, _) in CASES.items():
+    for case, (args, _) in CASES.items():
+        prim = PRIMITIVE.get(case, case)
         text += (
-            f"concept {prim}Cued {{\n"
+            f"concept {case}Cued {{\n"
             "    param r : vec3 in [(-4, -4, -4), (4, 4, 4)] = (0.3, 0.2, 0.1)\n"
             "    param t : vec3 length in [(-1m, -1m, -1m), (1m, 1m, 1m)] = (0, 0, 0)\n"
             f"    shape s = {prim}({args}) at trans(t) * rpy(r.x * 1rad, r.y * 1rad, r.z * 1rad)\n"
@@ -110,7 +120,7 @@ def test_cues_agree_with_geometry_affordances(
 ) -> None:
     inst = cued[f"{prim}Cued"].instantiate(r=r, t=t)
     pose = inst.grasp("pose")
-    hint = affordances(prim, CASES[prim][1])
+    hint = affordances(PRIMITIVE.get(prim, prim), CASES[prim][1])
     rot, center = pose[:3, :3], pose[:3, 3]
     np.testing.assert_allclose(
         inst.grasp("axis")[:3, 3] - center, rot @ hint["principal_axis"], atol=1e-9
