@@ -35,11 +35,17 @@ class Geom:
     mesh: trimesh.Trimesh  # in the geom frame (also used for mass properties)
 
     def native(self) -> tuple[str, tuple[float, ...]] | None:
-        """The simulator-native form: (box|cylinder|sphere|capsule, full SI dimensions)."""
+        """The simulator-native form: (box|cylinder|sphere|capsule, full SI dimensions).
+
+        Only exact ones: an untapered TaperedCuboid is a box and a SphericalCap of height
+        2 * radius a sphere (its frame is the ball's centre); tapered boxes, other caps, tori and
+        prisms have no native geom in MuJoCo or URDF, so they are meshes."""
         p = self.params
-        if self.primitive == "Cuboid":
+        if self.primitive == "Cuboid" or (self.primitive == "TaperedCuboid" and _untapered(p)):
             return "box", tuple(float(v) for v in p["size"])
         if self.primitive == "Sphere":
+            return "sphere", (float(p["radius"]),)
+        if self.primitive == "SphericalCap" and float(p["height"]) >= 2 * float(p["radius"]):
             return "sphere", (float(p["radius"]),)
         if self.primitive == "Cylinder" and float(p["radian"]) >= FULL_TURN - 1e-9:
             return "cylinder", (float(p["radius"]), float(p["height"]))
@@ -49,6 +55,11 @@ class Geom:
 
     def mesh_in_link(self) -> trimesh.Trimesh:
         return self.mesh.copy().apply_transform(self.pose)
+
+
+def _untapered(p: Mapping[str, Any]) -> bool:
+    size, top, offset = (np.asarray(p[k], dtype=float) for k in ("size", "top", "offset"))
+    return bool(np.allclose(top, size[[0, 2]], rtol=1e-12, atol=0) and not np.any(offset))
 
 
 def link_geoms(
