@@ -75,18 +75,23 @@ def _parser() -> argparse.ArgumentParser:
     _search_path(e)
     e.set_defaults(run=cmd_explain)
 
-    x = sub.add_parser("export", help="write an instance of a concept as URDF or MJCF")
-    x.add_argument("concept")
-    x.add_argument("paths", nargs="*", help="default: the standard library")
-    fmt = x.add_mutually_exclusive_group(required=True)
-    fmt.add_argument("--urdf", metavar="FILE", help="write URDF here (meshes next to it)")
-    fmt.add_argument("--mjcf", metavar="FILE", help="write MJCF (MuJoCo) here (meshes next to it)")
-    x.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="SI")
-    x.add_argument("--params-json", metavar="FILE", help="a JSON object {name: value} (SI)")
-    x.add_argument("--joint", action="append", default=[], metavar="NAME=VALUE", help="SI")
-    x.add_argument("--json", action="store_true", help="print a summary as JSON")
+    from grace_dsl.export.command import add_export_arguments
+    from grace_dsl.render.command import add_gallery_arguments, add_show_arguments
+
+    x = sub.add_parser("export", help="write an instance as URDF, MJCF or a mesh (OBJ/STL/GLB)")
+    add_export_arguments(x)
     _search_path(x)
     x.set_defaults(run=cmd_export)
+
+    sh = sub.add_parser("show", help="draw an instance: a PNG (MuJoCo) or an HTML viewer")
+    add_show_arguments(sh)
+    _search_path(sh)
+    sh.set_defaults(run=cmd_show)
+
+    ga = sub.add_parser("gallery", help="a PNG of every concept and primitive (docs/gallery)")
+    add_gallery_arguments(ga)
+    _search_path(ga)
+    ga.set_defaults(run=cmd_gallery)
     return p
 
 
@@ -372,6 +377,23 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     lib = _library(args.paths, args.search_path)
     return 1 if lib is None else run_export(args, lib)
+
+
+# ---- show / gallery -----------------------------------------------------------------------------
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from grace_dsl.render.command import run_show
+
+    lib = _library(args.paths, args.search_path)
+    return 1 if lib is None else run_show(args, lib)
+
+
+def cmd_gallery(args: argparse.Namespace) -> int:
+    from grace_dsl.render.command import run_gallery
+
+    lib = _library(args.paths, args.search_path)
+    return 1 if lib is None else run_gallery(args, lib)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,15 @@
-"""``eacc export``: instantiate a concept from command-line values and write URDF or MJCF.
+"""``eacc export``: instantiate a concept from command-line values and write URDF, MJCF or a
+mesh file (OBJ, STL, GLB).
 
 Kept out of ``cli/eacc.py`` so the command line stays a thin layer: here the textual values
 (``--param size=0.5,0.8,0.025``) are turned into typed ones using the concept's schema, and
-every error a user can cause becomes one message and exit code 1.
+every error a user can cause becomes one message and exit code 1. ``add_instance_arguments`` and
+``instance_from_args`` serve every command that makes an instance (``eacc show`` too).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from collections.abc import Mapping, Sequence
@@ -14,11 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from grace_dsl.export.common import geom_file_stem, mesh_dir_name
+from grace_dsl.export.meshes import MESH_FORMATS, mesh_summary, write_instance_mesh
 from grace_dsl.export.mjcf import MJCF_NATIVE, write_mjcf
 from grace_dsl.export.model import ExportModel, build_model
 from grace_dsl.export.urdf import URDF_NATIVE, write_urdf
 from grace_dsl.runtime.concept import ParamSpec
 from grace_dsl.runtime.errors import GraceError
+from grace_dsl.runtime.instance import Instance
 
 
 class ExportUsageError(GraceError):
@@ -89,25 +94,88 @@ def read_params_json(path: str | None) -> dict[str, Any]:
     return data
 
 
+def add_instance_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments that pick a concept and its values: CONCEPT [PATHS] --param --params-json
+    --joint."""
+    p.add_argument("concept")
+    p.add_argument("paths", nargs="*", help="default: the standard library")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="SI")
+    p.add_argument("--params-json", metavar="FILE", help="a JSON object {name: value} (SI)")
+    p.add_argument("--joint", action="append", default=[], metavar="NAME=VALUE", help="SI")
+
+
+def add_export_arguments(p: argparse.ArgumentParser) -> None:
+    """``eacc export``'s arguments: the instance, one output format, ``--link``, ``--json``."""
+    add_instance_arguments(p)
+    fmt = p.add_mutually_exclusive_group(required=True)
+    fmt.add_argument("--urdf", metavar="FILE", help="write URDF here (meshes next to it)")
+    fmt.add_argument("--mjcf", metavar="FILE", help="write MJCF (MuJoCo) here (meshes next to it)")
+    fmt.add_argument("--obj", metavar="FILE", help="write the instance's mesh as OBJ (world frame)")
+    fmt.add_argument("--stl", metavar="FILE", help="write the instance's mesh as STL (world frame)")
+    fmt.add_argument("--glb", metavar="FILE", help="write a GLB scene: one coloured node per link")
+    p.add_argument("--link", metavar="NAME", help="with --obj/--stl/--glb: only this link")
+    p.add_argument("--json", action="store_true", help="print a summary as JSON")
+
+
+def instance_from_args(args: Any, library: Any) -> Instance:
+    """The instance that ``add_instance_arguments``'s values describe (typed errors if bad)."""
+    concept = library[args.concept]
+    params = param_values(
+        concept.params,
+        read_params_json(args.params_json),
+        assignments(args.param, "--param"),
+    )
+    joints = joint_values(assignments(args.joint, "--joint"))
+    return concept.instantiate(joints=joints, **params)
+
+
+def _format(args: Any) -> tuple[str, str]:
+    for fmt in ("urdf", "mjcf", *MESH_FORMATS):
+        target = getattr(args, fmt, None)
+        if target is not None:
+            return fmt, target
+    raise ExportUsageError("give one of --urdf, --mjcf, --obj, --stl, --glb")
+
+
 def run_export(args: Any, library: Any) -> int:
     """The body of ``eacc export`` once the library is compiled (``args`` from argparse)."""
     try:
-        concept = library[args.concept]
-        params = param_values(
-            concept.params,
-            read_params_json(args.params_json),
-            assignments(args.param, "--param"),
-        )
-        joints = joint_values(assignments(args.joint, "--joint"))
-        inst = concept.instantiate(joints=joints, **params)
-        model = build_model(inst)
-        fmt, target = ("urdf", args.urdf) if args.urdf is not None else ("mjcf", args.mjcf)
-        (write_urdf if fmt == "urdf" else write_mjcf)(model, target)
-    except (GraceError, OSError) as exc:
+        fmt, target = _format(args)
+        link = getattr(args, "link", None)
+        if link is not None and fmt not in MESH_FORMATS:
+            raise ExportUsageError(
+                "--link picks one link of a mesh file: use --obj, --stl or --glb"
+            )
+        inst = instance_from_args(args, library)
+        if fmt in MESH_FORMATS:
+            mesh = write_instance_mesh(inst, target, fmt, link)
+        else:
+            model = build_model(inst)
+            (write_urdf if fmt == "urdf" else write_mjcf)(model, target)
+    except (GraceError, OSError, ValueError) as exc:
         sys.stderr.write(f"eacc: {exc}\n")
         return 1
-    _summary(model, fmt, Path(target), args.json)
+    if fmt in MESH_FORMATS:
+        _mesh_summary(inst.concept.name, mesh, fmt, Path(target), link, args.json)
+    else:
+        _summary(model, fmt, Path(target), args.json)
     return 0
+
+
+def _mesh_summary(
+    name: str, mesh: Any, fmt: str, target: Path, link: str | None, as_json: bool
+) -> None:
+    from grace_dsl.cli.output import print_json, print_text
+
+    info = mesh_summary(mesh)
+    if as_json:
+        print_json({"concept": name, "format": fmt, "output": str(target), "link": link, **info})
+        return
+    what = f"link {link}" if link else "all links"
+    print_text(
+        f"wrote {target} ({fmt}, {what}): {info['vertices']} vertices, {info['faces']} faces, "
+        f"volume {info['volume']:.6g} m^3"
+    )
 
 
 def _summary(model: ExportModel, fmt: str, target: Path, as_json: bool) -> None:

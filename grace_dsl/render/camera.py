@@ -1,0 +1,101 @@
+"""Where the camera stands: front-right-above the instance, by the concept convention.
+
+A concept's +z is out of its front and +y is up, so the view direction is fixed in the concept
+frame (rotated by the instance pose) and the distance is the smallest at which every point of the
+scene fits the field of view, with a margin. Both renderers start from the same :class:`View`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from grace_dsl.render.scene import Scene, Vec3
+
+AZIMUTH = 35.0  # degrees to the right of straight ahead (+x of the concept)
+ELEVATION = 25.0  # degrees above (+y)
+FOVY = 35.0  # vertical field of view, degrees
+MARGIN = 1.08
+
+
+@dataclass(frozen=True)
+class View:
+    """A pinhole camera: world eye and target points, the image's up direction, vertical field
+    of view in degrees."""
+
+    eye: Vec3
+    target: Vec3
+    up: Vec3
+    fovy: float
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """right, up, back (unit; back points from the target to the eye)."""
+        back = np.subtract(self.eye, self.target)
+        back = back / np.linalg.norm(back)
+        right = np.cross(self.up, back)
+        right = right / np.linalg.norm(right)
+        return right, np.cross(back, right), back
+
+    @property
+    def distance(self) -> float:
+        return float(np.linalg.norm(np.subtract(self.eye, self.target)))
+
+
+def view_direction(rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unit direction from the object to the eye, and the up direction, in the world."""
+    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
+    local = np.array([math.sin(az) * math.cos(el), math.sin(el), math.cos(az) * math.cos(el)])
+    return rotation @ local, rotation @ np.array([0.0, 1.0, 0.0])
+
+
+def frame_scene(scene: Scene, aspect: float, fovy: float = FOVY, margin: float = MARGIN) -> View:
+    """The front-right-above view that frames every mesh point and decoration of ``scene``."""
+    segs = scene.segments()
+    pts = np.concatenate(
+        [
+            scene.mesh_points(),
+            np.array([s.start for s in segs] + [s.end for s in segs]).reshape(-1, 3),
+        ]
+    )
+    if len(pts) == 0:
+        pts = np.zeros((1, 3))
+    return frame_points(pts, scene.pose[:3, :3], aspect, fovy, margin)
+
+
+def frame_points(
+    pts: np.ndarray, rotation: np.ndarray, aspect: float, fovy: float = FOVY, margin: float = MARGIN
+) -> View:
+    """The view along :func:`view_direction` in which ``pts`` just fit (times ``margin``)."""
+    back, up0 = view_direction(rotation)
+    right = np.cross(up0, back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    ty = math.tan(math.radians(fovy) / 2)
+    tx = ty * aspect
+    target = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    for _ in range(3):  # centre the projected extent: perspective shifts it a little each time
+        dist = _fit_distance(pts - target, right, up, back, tx, ty) * margin
+        rel = pts - target
+        depth = dist - rel @ back
+        x, y = (rel @ right) / depth, (rel @ up) / depth
+        shift = (x.max() + x.min()) / 2 * right + (y.max() + y.min()) / 2 * up
+        target = target + shift * dist
+    dist = _fit_distance(pts - target, right, up, back, tx, ty) * margin
+    dist = max(dist, 1e-3)
+    eye = target + dist * back
+    return View(_v(eye), _v(target), _v(up), fovy)
+
+
+def _fit_distance(
+    rel: np.ndarray, right: np.ndarray, up: np.ndarray, back: np.ndarray, tx: float, ty: float
+) -> float:
+    """The least eye distance at which every point lies inside the frustum."""
+    along = rel @ back
+    need = along + np.maximum(np.abs(rel @ up) / ty, np.abs(rel @ right) / tx)
+    return float(need.max())
+
+
+def _v(a: np.ndarray) -> Vec3:
+    return (float(a[0]), float(a[1]), float(a[2]))

@@ -1,0 +1,147 @@
+"""A self-contained HTML page of a scene: opens from ``file://``, with no server and no network.
+
+The page embeds the scene as JSON (meshes as base64 little-endian float32 vertices and uint32
+triangle indices) and the viewer ``viewer.js`` (plain JavaScript: WebGL, or a Canvas-2D painter's
+algorithm where WebGL is missing, so a headless browser always draws something). It starts from
+the same front-right-above view as the PNG.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from grace_dsl.render import style
+from grace_dsl.render.camera import frame_scene
+from grace_dsl.render.scene import Scene
+
+ASPECT = 4 / 3  # the initial framing; the viewer keeps the field of view when resized
+MARGIN = 1.3  # room for the title and legend panels around the object
+
+LEGEND = (
+    ("x axis of a frame", style.AXIS_X),
+    ("y axis (a gripper's closing direction)", style.AXIS_Y),
+    ("z axis (a gripper's approach)", style.AXIS_Z),
+    ("force of an action", style.FORCE),
+    ("turning axis of an action", style.TWIST),
+    ("joint axis (head: opening)", style.JOINT),
+)
+
+
+def _b64(array: np.ndarray, dtype: str) -> str:
+    return base64.b64encode(np.ascontiguousarray(array, dtype=dtype).tobytes()).decode("ascii")
+
+
+def scene_json(scene: Scene) -> dict[str, Any]:
+    """Everything the viewer draws, JSON-ready."""
+    view = frame_scene(scene, ASPECT, margin=MARGIN)
+    return {
+        "title": scene.title,
+        "background": list(style.BACKGROUND),
+        "size": scene.size,
+        "up": [float(x) for x in scene.pose[:3, 1]],
+        "view": {"eye": list(view.eye), "target": list(view.target), "fovy": view.fovy},
+        "parts": [
+            {
+                "link": p.link,
+                "color": list(p.color),
+                "opacity": p.opacity,
+                "positions": _b64(p.vertices.reshape(-1), "<f4"),
+                "indices": _b64(p.faces.reshape(-1), "<u4"),
+            }
+            for p in scene.parts
+        ],
+        "segments": [
+            {
+                "kind": s.kind,
+                "label": s.label,
+                "start": list(s.start),
+                "end": list(s.end),
+                "color": list(s.color),
+                "radius": s.radius,
+                "head": s.head,
+            }
+            for s in scene.segments()
+        ],
+    }
+
+
+def _viewer_source() -> str:
+    return resources.files("grace_dsl.render").joinpath("viewer.js").read_text(encoding="utf-8")
+
+
+def _legend(scene: Scene) -> str:
+    kinds = {s.color for s in scene.segments()}
+    rows = [
+        f'<li><span class="swatch" style="background:{style.hex_color(c)}"></span>'
+        f"{html.escape(text)}</li>"
+        for text, c in LEGEND
+        if c in kinds
+    ]
+    rows += [
+        f'<li><span class="swatch" style="background:{style.hex_color(p.color)}"></span>'
+        f"link {html.escape(p.link)}</li>"
+        for p in scene.parts
+    ]
+    return "<ul>" + "".join(rows) + "</ul>"
+
+
+PAGE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{title}</title>
+<style>
+  html, body {{ margin: 0; height: 100%; overflow: hidden; background: {bg};
+    font: 13px/1.4 system-ui, sans-serif; color: #333; }}
+  #view {{ display: block; width: 100%; height: 100%; touch-action: none; cursor: grab; }}
+  .panel {{ position: absolute; background: rgba(255, 255, 255, 0.8); padding: 6px 10px;
+    border-radius: 4px; pointer-events: none; }}
+  #title {{ top: 8px; left: 8px; }}
+  #title b {{ font-size: 15px; }}
+  #legend {{ bottom: 8px; right: 8px; font-size: 11px; }}
+  #legend ul {{ list-style: none; margin: 0; padding: 0; }}
+  .swatch {{ display: inline-block; width: 10px; height: 10px; margin-right: 6px;
+    border-radius: 2px; vertical-align: -1px; }}
+</style>
+</head>
+<body>
+<canvas id="view"></canvas>
+<div id="title" class="panel"><b>{title}</b><br>{subtitle}</div>
+<div id="legend" class="panel">{legend}</div>
+<script type="application/json" id="scene-data">{data}</script>
+<script>
+{viewer}
+</script>
+</body>
+</html>
+"""
+
+
+def scene_html(scene: Scene, subtitle: str = "") -> str:
+    """The page's text."""
+    data = json.dumps(scene_json(scene), separators=(",", ":")).replace("</", "<\\/")
+    hint = "drag: orbit &middot; wheel: zoom &middot; shift-drag: pan &middot; double-click: reset"
+    return PAGE.format(
+        title=html.escape(scene.title),
+        subtitle=(html.escape(subtitle) + "<br>" if subtitle else "") + hint,
+        bg=style.hex_color(style.BACKGROUND),
+        legend=_legend(scene),
+        data=data,
+        viewer=_viewer_source().replace("</script", "<\\/script"),
+    )
+
+
+def write_html(scene: Scene, path: str | Path, subtitle: str = "") -> Path:
+    """Write the page of ``scene`` to ``path``."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(scene_html(scene, subtitle), encoding="utf-8")
+    return target
