@@ -66,6 +66,22 @@ def _spherical_cap(b: Backend, a: dict[str, Any]) -> tuple[Vec, Any]:
     return Z, b.if_else(b.compare(">=", h, r), 2 * r, face)
 
 
+def _tapered_cuboid(b: Backend, a: dict[str, Any]) -> tuple[Vec, Any]:
+    """Like a box, over the bounding box of the bottom and the shifted top face."""
+    (sx, h, sz), (tx, tz), (ox, oz) = a["size"], a["top"], a["offset"]
+    ex = b.max(sx / 2, ox + tx / 2) - b.min(-sx / 2, ox - tx / 2)
+    ez = b.max(sz / 2, oz + tz / 2) - b.min(-sz / 2, oz - tz / 2)
+    return _longest_side(b, (ex, h, ez)), b.min(ex, b.min(h, ez))
+
+
+def _prism(b: Backend, a: dict[str, Any]) -> tuple[Vec, Any]:
+    """From the face on -y to the opposite face (even sides) or corner (odd): cos(pi n) is the
+    parity (-1)^n of the whole number n, so the width needs no branch."""
+    n, r = a["sides"], a["radius"]
+    apothem, even = r * b.cos(b.pi / n), (1 + b.cos(b.pi * n)) / 2
+    return Z, apothem + even * apothem + (1 - even) * r
+
+
 HINTS: dict[str, Hint] = {
     "Cuboid": _cuboid,
     "RectRing": _rect_ring,
@@ -77,6 +93,8 @@ HINTS: dict[str, Hint] = {
     "Ring": lambda b, a: (X, b.min(a["r_out"] - a["r_in"], a["height"])),
     "Torus": lambda b, a: (X, 2 * a["r_minor"]),
     "SphericalCap": _spherical_cap,
+    "TaperedCuboid": _tapered_cuboid,
+    "Prism": _prism,
 }
 
 

@@ -15,7 +15,7 @@ import pytest
 import grace_dsl as eac
 from grace_dsl.export import build_model, export_mjcf, export_urdf
 from grace_dsl.export.model import ExportOptions
-from grace_dsl.geometry import primitive_sdf, volume
+from grace_dsl.geometry import affordances, primitive_sdf, volume
 
 SOURCE = """use primitives.{TaperedCuboid, SphericalCap, Torus, Prism}
 
@@ -38,6 +38,24 @@ concept NewShapes {
     }
     joint spin : continuous(base -> knob) axis (0, 0, 1) at (0, 0, 100mm)
     joint hinge : revolute(base -> flap) axis (0, 1, 0) at (100mm, 0, 0) range [0, 90deg]
+}
+
+/// Affordance cues of the new primitives, placed by a rotation: origin = center, and grasps
+/// one metre along each cue's axis, with the cue's width.
+concept Cued {
+    param n : int in [3, 12] = 6
+    param top : vec2 length in [(0mm, 0mm), (300mm, 300mm)] = (25mm, 25mm)
+    param offset : vec2 length in [(-100mm, -100mm), (100mm, 100mm)] = (5mm, -3mm)
+    param size : vec3 length in [(10mm, 10mm, 10mm), (300mm, 300mm, 300mm)] = (40mm, 60mm, 40mm)
+    param cap : length in [1mm, 50mm] = 12mm
+    shape taper = TaperedCuboid(size: size, top: top, offset: offset) at rpy(0.3rad, 0.2rad, 0.1rad)
+    shape hex = Prism(sides: n, radius: 20mm, height: 15mm) at rpy(-0.4rad, 0.5rad, 1rad)
+    shape dome = SphericalCap(radius: 25mm, height: cap) at rotx(0.3rad)
+    shape handle = Torus(r_major: 40mm, r_minor: 6mm, radian: 180deg) at roty(0.7rad)
+    grasp taper_axis = trans(taper.principal_axis * 1m) width taper.graspable_width
+    grasp hex_axis = trans(hex.principal_axis * 1m) width hex.graspable_width
+    grasp dome_axis = trans(dome.principal_axis * 1m) width dome.graspable_width
+    grasp handle_axis = trans(handle.principal_axis * 1m) width handle.graspable_width
 }
 """
 
@@ -157,3 +175,45 @@ def test_urdf_loads_in_pinocchio(inst: eac.Instance, tmp_path: Path) -> None:
     )
     assert geoms.ngeoms == len(SHAPES)
     assert {j.name for j in build_model(inst).joints} <= set(model.names)
+
+
+def _rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    return (_rot(2, yaw) @ _rot(1, pitch) @ _rot(0, roll))[:3, :3]
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        {},
+        {"n": 3, "size": (0.05, 0.02, 0.03), "top": (0.0, 0.08), "offset": (-0.04, 0.01)},
+        {"n": 4, "cap": 0.03, "top": (0.3, 0.0)},
+        {"n": 5, "cap": 0.05, "size": (0.01, 0.3, 0.02)},
+        {"n": 7, "offset": (0.1, -0.1)},
+    ],
+)
+def test_cues_agree_with_the_geometry_affordances(
+    lib: eac.Library, values: dict[str, object]
+) -> None:
+    inst = lib["Cued"].instantiate(**values)
+    p = inst.params
+    shapes = {
+        "taper": (
+            "TaperedCuboid",
+            {"size": p["size"], "top": p["top"], "offset": p["offset"]},
+            _rpy(0.3, 0.2, 0.1),
+        ),
+        "hex": ("Prism", {"sides": p["n"], "radius": 0.02, "height": 0.015}, _rpy(-0.4, 0.5, 1)),
+        "dome": ("SphericalCap", {"radius": 0.025, "height": p["cap"]}, _rot(0, 0.3)[:3, :3]),
+        "handle": (
+            "Torus",
+            {"r_major": 0.04, "r_minor": 0.006, "radian": math.pi},
+            _rot(1, 0.7)[:3, :3],
+        ),
+    }
+    for shape, (name, params, rot) in shapes.items():
+        hint = affordances(name, params)
+        grasp = f"{shape}_axis"
+        np.testing.assert_allclose(
+            inst.grasp(grasp)[:3, 3], rot @ hint["principal_axis"], atol=1e-9, err_msg=shape
+        )
+        assert math.isclose(inst.grasp_width(grasp), hint["graspable_width"], rel_tol=1e-12)
