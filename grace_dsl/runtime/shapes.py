@@ -12,6 +12,7 @@ a union, a bound elsewhere that is exact on the surface) for fitting and contain
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -176,7 +177,11 @@ def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64)
 def instance_sdf(inst: Instance, points: np.ndarray) -> np.ndarray:
     """Signed distance of world ``points`` (N, 3) to the instance: the union of its shapes."""
     tree = ShapeTree(inst)
-    motions = _motions(tree)
+    return _tree_sdf(tree, _motions(tree), points)
+
+
+def _tree_sdf(tree: ShapeTree, motions: dict[str, np.ndarray], points: np.ndarray) -> np.ndarray:
+    """``instance_sdf`` on an already evaluated tree (shapes and link motions computed once)."""
     dists = [
         tree.sdf(
             name,
@@ -193,10 +198,12 @@ def instance_samples(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``n`` world points spread by area over the instance's outer surface, and their normals.
 
-    Each piece's surface is sampled exactly (analytically for primitives); points that fall
-    inside another shape, or on a face pressed against another shape's, are not on the outer
-    surface and are rejected, so draws repeat (with the same generator, hence
-    deterministically) until ``n`` remain.
+    Each piece's surface is sampled exactly (analytically for primitives, weighted by their exact
+    areas); points that fall inside another shape, or on a face pressed against another shape's,
+    are not on the outer surface and are rejected, so draws repeat (with the same generator,
+    hence deterministically) until ``n`` remain. Each round draws every piece at once and tests
+    the batch with two distance evaluations; its size follows the share kept so far, so an
+    instance whose drawers hide most of their area inside the carcass needs few rounds.
     """
     tree = ShapeTree(inst)
     motions = _motions(tree)
@@ -206,26 +213,38 @@ def instance_samples(
     ]
     if not pieces:
         raise ValueError(f"{inst.concept.name} has no shapes to sample")
-    areas = np.array([p.mesh.area for p in pieces])
+    areas = np.array([_piece_area(p) for p in pieces])
+    worlds = [motions[p.link] @ p.pose for p in pieces]
     rng = np.random.default_rng(seed)
     kept_pts: list[np.ndarray] = []
     kept_nrm: list[np.ndarray] = []
-    total = 0
+    total, drawn, rate = 0, 0, 1 / 1.3  # rate: the share of draws kept (a first guess)
     for _ in range(50):
-        counts = rng.multinomial(int(1.3 * (n - total)) + 16, areas / areas.sum())
-        for piece, k in zip(pieces, counts):
-            pts, nrm = _piece_samples(piece, int(k), rng)
-            world = motions[piece.link] @ piece.pose
-            pts, nrm = _apply(world, pts), nrm @ world[:3, :3].T
-            # outside every other shape, and not on a face that touches another shape's face
-            outer = (instance_sdf(inst, pts) > -tol) & (instance_sdf(inst, pts + 1e-6 * nrm) > 0)
-            kept_pts.append(pts[outer])
-            kept_nrm.append(nrm[outer])
-            total += int(outer.sum())
+        want = math.ceil(1.1 * (n - total) / max(rate, 0.02)) + 16
+        counts = rng.multinomial(want, areas / areas.sum())
+        batch = [_piece_samples(piece, int(k), rng) for piece, k in zip(pieces, counts)]
+        pts = np.concatenate([_apply(w, b[0]) for w, b in zip(worlds, batch)])
+        nrm = np.concatenate([b[1] @ w[:3, :3].T for w, b in zip(worlds, batch)])
+        # outside every other shape, and not on a face that touches another shape's face
+        outer = (_tree_sdf(tree, motions, pts) > -tol) & (
+            _tree_sdf(tree, motions, pts + 1e-6 * nrm) > 0
+        )
+        kept_pts.append(pts[outer])
+        kept_nrm.append(nrm[outer])
+        total, drawn = total + int(outer.sum()), drawn + want
+        rate = total / drawn
         if total >= n:
             break
     order = rng.permutation(total)[:n]
     return np.concatenate(kept_pts)[order], np.concatenate(kept_nrm)[order]
+
+
+def _piece_area(piece: Piece) -> float:
+    from grace_dsl.geometry import surface_area
+
+    if piece.primitive != "mesh":
+        return surface_area(piece.primitive, piece.params)
+    return float(piece.mesh.area)
 
 
 def _piece_samples(piece: Piece, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,7 @@ import pytest
 import grace_dsl as eac
 from grace_dsl.export import build_model, export_mjcf, export_urdf
 from grace_dsl.export.model import ExportOptions
-from grace_dsl.geometry import affordances, primitive_sdf, volume
+from grace_dsl.geometry import affordances, primitive_sdf, surface_area, volume
 
 SOURCE = """use primitives.{TaperedCuboid, SphericalCap, Torus, Prism}
 
@@ -150,6 +150,21 @@ def test_surface_samples_lie_on_the_outer_surface(inst: eac.Instance, pose: np.n
     assert np.all(on_each > 0), on_each
     again = inst.sample_surface(3000, seed=1)
     np.testing.assert_array_equal(pts, again)
+
+
+def test_samples_are_spread_by_visible_area(inst: eac.Instance, pose: np.ndarray) -> None:
+    """The dome's flat face (radius 21.4 mm) covers the hex top (circumradius 20 mm): those two
+    hexagons are hidden; every other face is outer surface, so each shape's share of the samples
+    is its visible area over the total."""
+    n = 20_000
+    pts = inst.sample_surface(n, seed=3)
+    hexagon = 6 / 2 * 0.02**2 * math.sin(math.pi / 3)
+    visible = np.array([surface_area(name, params) for name, params, _ in SHAPES])
+    visible[2:4] -= hexagon  # the hex's top and the part of the dome's face resting on it
+    share = visible / visible.sum()
+    counts = np.sum(np.abs(_each(pose, pts)) < 1e-9, axis=1)
+    sigma = np.sqrt(share * (1 - share) / n)
+    assert np.all(np.abs(counts / n - share) < 4 * sigma + 1e-3), (counts / n, share)
 
 
 def test_mjcf_loads_in_mujoco_with_native_geoms_only_where_exact(
