@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 from grace_dsl.compiler.build import front_end
 from grace_dsl.compiler.resolve import stdlib_dir
+
+os.environ.setdefault("MUJOCO_GL", "osmesa")  # headless MuJoCo rendering (tests/render)
 
 
 @pytest.fixture(scope="session")

@@ -75,8 +75,10 @@ def write_instance_mesh(
     target.parent.mkdir(parents=True, exist_ok=True)
     if kind == "glb":
         target.write_bytes(_coloured(inst, meshes).export(file_type="glb"))
+    elif kind == "obj":
+        merged.export(target, file_type="obj", digits=12)  # text: keep ~1e-12 m, not 1e-8
     else:
-        merged.export(target, file_type=kind)
+        merged.export(target, file_type=kind)  # binary STL: float32, like GLB
     return merged
 
 

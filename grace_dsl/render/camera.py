@@ -17,7 +17,8 @@ from grace_dsl.render.scene import Scene, Vec3
 AZIMUTH = 35.0  # degrees to the right of straight ahead (+x of the concept)
 ELEVATION = 25.0  # degrees above (+y)
 FOVY = 35.0  # vertical field of view, degrees
-MARGIN = 1.08
+MARGIN = 1.08  # the outermost point is 1/MARGIN of the way from the centre to the edge
+MIN_DISTANCE = 1e-3  # metres: a single point is still seen from somewhere
 
 
 @dataclass(frozen=True)
@@ -67,23 +68,23 @@ def frame_scene(scene: Scene, aspect: float, fovy: float = FOVY, margin: float =
 def frame_points(
     pts: np.ndarray, rotation: np.ndarray, aspect: float, fovy: float = FOVY, margin: float = MARGIN
 ) -> View:
-    """The view along :func:`view_direction` in which ``pts`` just fit (times ``margin``)."""
+    """The view along :func:`view_direction` in which ``pts`` just fit, within ``1 / margin``
+    of the centre-to-edge distance."""
     back, up0 = view_direction(rotation)
     right = np.cross(up0, back)
     right /= np.linalg.norm(right)
     up = np.cross(back, right)
-    ty = math.tan(math.radians(fovy) / 2)
+    ty = math.tan(math.radians(fovy) / 2) / margin  # the margin narrows the usable field
     tx = ty * aspect
     target = (pts.min(axis=0) + pts.max(axis=0)) / 2
     for _ in range(3):  # centre the projected extent: perspective shifts it a little each time
-        dist = _fit_distance(pts - target, right, up, back, tx, ty) * margin
+        dist = max(_fit_distance(pts - target, right, up, back, tx, ty), MIN_DISTANCE)
         rel = pts - target
         depth = dist - rel @ back
         x, y = (rel @ right) / depth, (rel @ up) / depth
         shift = (x.max() + x.min()) / 2 * right + (y.max() + y.min()) / 2 * up
         target = target + shift * dist
-    dist = _fit_distance(pts - target, right, up, back, tx, ty) * margin
-    dist = max(dist, 1e-3)
+    dist = max(_fit_distance(pts - target, right, up, back, tx, ty), MIN_DISTANCE)
     eye = target + dist * back
     return View(_v(eye), _v(target), _v(up), fovy)
 

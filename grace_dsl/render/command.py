@@ -17,6 +17,7 @@ from typing import Any
 from grace_dsl.export.command import ExportUsageError, add_instance_arguments, instance_from_args
 from grace_dsl.render.png import RenderError
 from grace_dsl.render.scene import Scene, describe, primitive_scene
+from grace_dsl.runtime.concept import suggest
 from grace_dsl.runtime.errors import GraceError
 
 GALLERY_SIZE = (640, 480)
@@ -38,6 +39,13 @@ def add_gallery_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("paths", nargs="*", help="default: the standard library")
     p.add_argument(
         "-o", "--output", default=DEFAULT_GALLERY, help=f"directory (default {DEFAULT_GALLERY})"
+    )
+    p.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="draw only this concept or primitive (repeatable)",
     )
     p.add_argument("--json", action="store_true", help="print the pictures written as JSON")
 
@@ -166,6 +174,17 @@ def run_gallery(args: Any, library: Any) -> int:
 
     output = Path(args.output)
     jobs = gallery_jobs(library, output)
+    if args.only:
+        names = [pic.name for pic, _ in jobs]
+        unknown = [n for n in args.only if n not in names]
+        if unknown:
+            sys.stderr.write(
+                f"eacc: --only {unknown[0]}: no such concept or primitive"
+                + suggest(unknown[0], names)
+                + "\n"
+            )
+            return 1
+        jobs = [(pic, job) for pic, job in jobs if pic.name in args.only]
     done: list[Picture] = []
     failed: list[tuple[Picture, str]] = []
     with _progress(len(jobs), not args.json) as step:
