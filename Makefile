@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test lint bench system-deps clean
+.PHONY: demo test lint bench gallery system-deps clean
 
 demo: $(STAMP)
 	$(BIN)/grace demo
@@ -22,15 +22,28 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/bench_eval.py
 
-# venv support and a C compiler (the compiler turns concepts into native code when one exists).
+# docs/gallery: a picture of every concept of the standard library and every primitive
+gallery: $(STAMP)
+	$(BIN)/eacc gallery -o docs/gallery
+
+# venv support and a C compiler (the compiler turns concepts into native code when one exists);
+# OSMesa for headless MuJoCo pictures (eacc show --png) and Chromium for the HTML viewer's tests.
 system-deps:
-	@if ! $(PYTHON) -c 'import ensurepip, venv' >/dev/null 2>&1 || ! command -v cc >/dev/null 2>&1; then \
+	@missing=""; \
+	if ! $(PYTHON) -c 'import ensurepip, venv' >/dev/null 2>&1 || ! command -v cc >/dev/null 2>&1; then \
+	  missing="python3-venv gcc libc6-dev"; \
+	fi; \
+	if ! $(PYTHON) -c 'import ctypes.util as u, sys; sys.exit(not u.find_library("OSMesa"))'; then \
+	  missing="$$missing libosmesa6"; \
+	fi; \
+	if ! command -v chromium >/dev/null 2>&1; then missing="$$missing chromium"; fi; \
+	if [ -n "$$missing" ]; then \
 	  if command -v apt-get >/dev/null 2>&1; then \
-	    echo "installing system packages: python3-venv gcc"; \
+	    echo "installing system packages:$$missing"; \
 	    $(SUDO) apt-get update -qq && \
-	    $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv gcc libc6-dev; \
+	    $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
 	  else \
-	    echo "warning: no apt-get; make sure Python's venv module and a C compiler are installed"; \
+	    echo "warning: no apt-get; install:$$missing (venv, C compiler, OSMesa, Chromium)"; \
 	  fi; \
 	fi
 
