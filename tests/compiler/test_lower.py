@@ -37,7 +37,8 @@ def test_door_flattens_its_handle(stdlib_front_end) -> None:  # type: ignore[no-
 def test_numpy_lowering_gives_numbers(stdlib_front_end) -> None:  # type: ignore[no-untyped-def]
     """Lowering over plain numbers: the handle's grasp at theta = 0 sits on the outer rim."""
     _, checked = stdlib_front_end
-    values = {"radian": 2.0, "r_in": 0.04, "r_out": 0.05, "height": 0.01, "pull:theta": 0.0}
+    values = {"radian": 2.0, "r_in": 0.04, "r_out": 0.05, "height": 0.01, "keep_clear": 0.0}
+    values["pull:theta"] = 0.0
 
     def number(kind: str, name: str) -> float:
         return np.float64(values[name.split(":")[-1] if kind != "g" else name])
