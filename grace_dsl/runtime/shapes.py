@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,7 +36,16 @@ class Piece:
     primitive: str
     params: Mapping[str, Any]
     pose: np.ndarray  # concept frame at q = 0 <- piece frame
-    mesh: trimesh.Trimesh  # in the piece frame
+    resolution: int = 64
+    boolean: trimesh.Trimesh | None = None  # the mesh of a difference, in the piece frame
+
+    @cached_property
+    def mesh(self) -> trimesh.Trimesh:
+        """The piece's mesh in its frame; a primitive's is built on first use (surface samples
+        and distances never need it)."""
+        if self.boolean is not None:
+            return self.boolean
+        return primitive_mesh(self.primitive, self.params, resolution=self.resolution)
 
 
 class ShapeTree:
@@ -101,9 +111,7 @@ class ShapeTree:
             ]
         if s["primitive"] == "difference":
             return self._difference(name, place, warnings)
-        params = self.params(name)
-        mesh = primitive_mesh(s["primitive"], params, resolution=self.resolution)
-        return [Piece(name, s["link"], s["primitive"], params, place, mesh)]
+        return [Piece(name, s["link"], s["primitive"], self.params(name), place, self.resolution)]
 
     def _difference(self, name: str, place: np.ndarray, warnings: list[str]) -> list[Piece]:
         try:
@@ -116,7 +124,8 @@ class ShapeTree:
             warnings.append(f"shape {name} (a difference) skipped: {exc}")
             return []
         result.apply_transform(np.linalg.inv(place))
-        return [Piece(name, self.shapes[name]["link"], "mesh", {}, place, result)]
+        link = self.shapes[name]["link"]
+        return [Piece(name, link, "mesh", {}, place, self.resolution, result)]
 
     def _solid(self, name: str, place: np.ndarray, warnings: list[str]) -> trimesh.Trimesh:
         meshes = [p.mesh.copy().apply_transform(p.pose) for p in self.pieces(name, place, warnings)]
@@ -182,12 +191,9 @@ def instance_sdf(inst: Instance, points: np.ndarray) -> np.ndarray:
 
 def _tree_sdf(tree: ShapeTree, motions: dict[str, np.ndarray], points: np.ndarray) -> np.ndarray:
     """``instance_sdf`` on an already evaluated tree (shapes and link motions computed once)."""
+    # placed straight in the world (motion times placement): one transform of the points per shape
     dists = [
-        tree.sdf(
-            name,
-            tree.placement(name),
-            _apply(np.linalg.inv(motions[tree.shapes[name]["link"]]), points),
-        )
+        tree.sdf(name, motions[tree.shapes[name]["link"]] @ tree.placement(name), points)
         for name in tree.outermost()
     ]
     return np.min(dists, axis=0) if dists else np.full(len(points), np.inf)
