@@ -103,7 +103,7 @@ def _decorate(
         visual, "headlight", ambient="0.38 0.38 0.38", diffuse="0.42 0.42 0.42", specular="0 0 0"
     )
     # znear/zfar are fractions of the model's extent: set the extent to the scene's own size
-    ET.SubElement(visual, "map", znear="0.005", zfar="50", shadowclip="1.2")
+    ET.SubElement(visual, "map", znear="0.1", zfar="12", shadowclip="1.2")
     lo, hi = scene.bounds()
     extent = max(float(np.linalg.norm(hi - lo)), view.distance / 4, 1e-3)
     stat = ET.Element("statistic", extent=num(extent), center=vec((lo + hi) / 2))
