@@ -3,7 +3,7 @@
 Boxes, spheres, capsules, cones and spherical caps come from trimesh's generators; everything
 whose cross-section is planar in xy (sectors, tubes, rings, frames, polygons) is one 2D cap
 triangulation extruded along z, so sectors of any angle share one code path. The tapered box is
-the convex hull of its corners; the torus segment is a circle swept along an arc.
+its six planar faces; the torus segment is a circle swept along an arc.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from grace_dsl.geometry.primitives import (
     validate,
 )
 from grace_dsl.geometry.props import bounds, cap_base_radius, prism_vertices
-from grace_dsl.geometry.sdf import taper_corners
+from grace_dsl.geometry.sdf import TAPER_FACES, taper_corners
 
 DEFAULT_RESOLUTION = 64  # segments per full circle: volume error ~0.2 % (sphere ~0.3 %)
 _FULL_TOL = 1e-9
@@ -142,10 +142,17 @@ def _frustum(p: Params, res: int) -> trimesh.Trimesh:
 
 
 def _tapered_cuboid(p: Params, res: int) -> trimesh.Trimesh:
-    """The hull of the eight corners: exact (planar faces), and a top of zero width or depth
-    (a wedge or a pyramid) merges corners instead of leaving slivers."""
-    corners = np.array(list(taper_corners(p).values()))
-    return trimesh.convex.convex_hull(corners)
+    """The six faces as two triangles each (exact: the faces are planar). A top of zero width
+    or depth (a wedge or a pyramid) merges corners; the triangles that collapse are dropped."""
+    corners = taper_corners(p)
+    index = {k: i for i, k in enumerate(corners)}
+    verts = np.array(list(corners.values()))
+    quads = np.array([[index[k] for k in quad] for quad in TAPER_FACES])
+    faces = np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    mesh = trimesh.Trimesh(verts, faces, process=True)  # merges the corners a collapsed top shares
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    return mesh
 
 
 def _spherical_cap(p: Params, res: int) -> trimesh.Trimesh:
