@@ -42,7 +42,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import casadi
 import numpy as np
@@ -743,6 +743,7 @@ class NativeFunction:
         self._tls = threading.local()
         self._n_args = len(self._layout.inputs)
         self._scalar_args = all(a.size == 1 for a in self._layout.inputs)
+        self._sample_shapes = tuple(a.sample_shapes for a in self._layout.inputs)
         # (offset, size, is a vector) per input: the fast copy of scalars and 1-D vectors
         self._slots = tuple(
             (a.offset, a.size, a.rows == 1 or a.cols == 1) for a in self._layout.inputs
@@ -792,7 +793,13 @@ class NativeFunction:
         Arguments with a single-sample shape are broadcast.  Outputs are transposed views of
         struct-of-arrays buffers (not C-contiguous); copy them if you need contiguity.
         ``threads`` defaults to one thread per :data:`MIN_SAMPLES_PER_THREAD` samples.
+        Small batches of float64 arrays reuse this thread's buffers and return C-contiguous
+        copies (see :meth:`_small_batch`).
         """
+        if threads is None or threads == 1:
+            out = self._small_batch(args)
+            if out is not None:
+                return out
         n, split = self._layout.split_batch(args)
         blocks = [
             _soa_block(arg, arr, batched, n)
@@ -809,12 +816,87 @@ class NativeFunction:
             ]
         )
 
+    def _small_batch(self, args: Sequence[ArrayLike]) -> Outputs | None:
+        """``batch`` for up to :data:`SMALL_BATCH` samples of float64 arrays, or None.
+
+        Why: for a handful of samples (a grasp family's 16 poses) the generic path's array
+        conversions and ctypes pointer arrays cost ten times the kernel. Here the per-thread
+        struct-of-arrays buffers and their pointer arrays are made once per N and refilled;
+        anything unusual (other types, bad shapes, large N) returns None, and the generic path
+        handles or rejects it.
+        """
+        if len(args) != self._n_args:
+            return None
+        n = -1  # no batched argument yet
+        for shapes, value in zip(self._sample_shapes, args):
+            if type(value) is not np.ndarray or value.dtype != np.float64:
+                return None
+            if value.shape not in shapes:
+                if value.ndim == 0 or value.shape[1:] not in shapes:
+                    return None
+                if n >= 0 and value.shape[0] != n:
+                    return None
+                n = value.shape[0]
+        n = 1 if n < 0 else n
+        if not 0 < n <= SMALL_BATCH:
+            return None
+        cache = getattr(self._tls, "small", None)
+        if cache is None:
+            cache = self._tls.small = {}
+        bufs = cache.get(n)
+        if bufs is None:
+            if len(cache) >= 4:
+                cache.pop(next(iter(cache)))
+            bufs = cache[n] = _SmallBuffers.new(self._layout, n)
+        arrays = cast("Sequence[FloatArray]", args)  # all float64 arrays, checked above
+        for arg, value, block in zip(self._layout.inputs, arrays, bufs.blocks):
+            if value.ndim <= 1 and value.shape in arg.sample_shapes:
+                block.T[...] = value  # a scalar or vector, the same for every sample
+            elif value.shape in arg.sample_shapes:
+                block[...] = value.reshape(-1, order="F")[:, None]
+            elif value.ndim == 2 and value.shape[1] == arg.size:
+                block.T[...] = value  # (N, size): a scalar's or a vector's samples
+            else:
+                block.reshape(arg.cols, arg.rows, n)[...] = value.reshape(
+                    n, arg.rows, arg.cols
+                ).transpose(2, 1, 0)
+        self._batch(n, bufs.in_ptrs, bufs.out_ptrs, 1)
+        outs = [
+            o.reshape(a.cols, a.rows, n).transpose(2, 1, 0).copy()
+            for a, o in zip(self._layout.outputs, bufs.outs)
+        ]
+        return outs[0] if len(outs) == 1 else tuple(outs)
+
+
+#: Largest batch served from reused per-thread buffers (larger ones allocate and may thread).
+SMALL_BATCH = 1024
+
+
+@dataclass
+class _SmallBuffers:
+    """Struct-of-arrays input and output blocks for N samples, with their pointer arrays."""
+
+    blocks: list[FloatArray]
+    outs: list[FloatArray]
+    in_ptrs: Any
+    out_ptrs: Any
+
+    @staticmethod
+    def new(layout: _Layout, n: int) -> _SmallBuffers:
+        blocks = [np.empty((a.size, n)) for a in layout.inputs]
+        outs = [np.empty((a.size, n)) for a in layout.outputs]
+        return _SmallBuffers(
+            blocks,
+            outs,
+            (ctypes.c_void_p * max(1, len(blocks)))(*[b.ctypes.data for b in blocks]),
+            (ctypes.c_void_p * max(1, len(outs)))(*[o.ctypes.data for o in outs]),
+        )
+
 
 def _soa_block(arg: _Arg, arr: FloatArray, batched: bool, n: int) -> FloatArray:
     """An input as a contiguous (size, N) block; zero-copy for contiguous scalar batches."""
-    if not batched:
-        column = arr.reshape(-1, order="F")[:, None]
-        return np.ascontiguousarray(np.broadcast_to(column, (arg.size, n)))
+    if not batched:  # repeat: a tenth of broadcast_to + ascontiguousarray's cost for small N
+        return arr.reshape(-1, order="F")[:, None].repeat(n, axis=1)
     if arg.size == 1:
         return np.ascontiguousarray(arr.reshape(1, n))
     block = np.empty((arg.size, n))

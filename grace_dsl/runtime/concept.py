@@ -6,6 +6,7 @@ The schema comes from the manifest; evaluation goes through the fastest evaluato
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -119,17 +120,86 @@ def pack_params(
     specs: tuple[ParamSpec, ...], values: Mapping[str, Any], concept: str
 ) -> np.ndarray:
     """The flat parameter vector of ``values`` (missing ones take their defaults)."""
-    by_name = {s.name: s for s in specs}
-    for name in values:
-        if name not in by_name:
-            raise UnknownNameError(f"{concept} has no parameter {name!r}" + suggest(name, by_name))
-    p = np.empty(sum(s.size for s in specs))
-    for s in specs:
-        if s.name in values:
-            p[s.offset : s.offset + s.size] = s.encode(values[s.name])
-        else:
-            p[s.offset : s.offset + s.size] = np.atleast_1d(np.asarray(s.default, dtype=float))
-    return p
+    return ParamPacker.of(specs).pack(values, concept)
+
+
+_FLOATS = frozenset((float, int, np.float64))
+_Slot = tuple[int, int, tuple[float, ...] | None, tuple[float, ...] | None]
+_TOL = 1e-12  # the tolerance of ParamSpec._check_range
+
+
+@dataclass(frozen=True)
+class ParamPacker:
+    """Packs user values into the flat parameter vector, fast for plain numbers and tuples.
+
+    Why: a perception loop instantiates a concept per estimate, and numpy's per-value overhead
+    (asarray, reshape, any/all) dominated that call. Plain Python numbers inside their ranges
+    are checked here with float comparisons; anything else (arrays, choices, ints, bools, values
+    out of range, NaN) goes through ``ParamSpec.encode``, which validates and raises the errors.
+    """
+
+    specs: tuple[ParamSpec, ...]
+    by_name: dict[str, ParamSpec]
+    default: np.ndarray
+    # name -> (offset, size, lo, hi) of real-valued parameters, bounds as floats (None: unbounded)
+    fast: dict[str, _Slot]
+
+    @staticmethod
+    def of(specs: tuple[ParamSpec, ...]) -> ParamPacker:
+        default = np.empty(sum(s.size for s in specs))
+        fast = {}
+        for s in specs:
+            default[s.offset : s.offset + s.size] = np.atleast_1d(
+                np.asarray(s.default, dtype=float)
+            )
+            if s.kind in ("num", "vec"):
+                # bounds widened by the tolerance of ParamSpec._check_range
+                lo = None if s.lo is None else tuple(float(x) - _TOL for x in np.atleast_1d(s.lo))
+                hi = None if s.hi is None else tuple(float(x) + _TOL for x in np.atleast_1d(s.hi))
+                if all(b is None or len(b) == s.size for b in (lo, hi)):
+                    fast[s.name] = (s.offset, s.size, lo, hi)
+        return ParamPacker(specs, {s.name: s for s in specs}, default, fast)
+
+    def pack(self, values: Mapping[str, Any], concept: str) -> np.ndarray:
+        by_name = self.by_name
+        for name in values:
+            if name not in by_name:
+                raise UnknownNameError(
+                    f"{concept} has no parameter {name!r}" + suggest(name, by_name)
+                )
+        p = self.default.copy()
+        for name, value in values.items():
+            slot = self.fast.get(name)
+            if slot is not None and _put_fast(p, slot, value):
+                continue
+            s = by_name[name]
+            p[s.offset : s.offset + s.size] = s.encode(value)
+        return p
+
+
+def _put_fast(p: np.ndarray, slot: _Slot, value: Any) -> bool:
+    """Write a plain number or tuple of numbers that is finite and in range; False otherwise
+    (the caller then takes the validating path, which raises the right error)."""
+    offset, size, lo, hi = slot
+    if size == 1 and type(value) in _FLOATS:
+        v = float(value)
+        # NaN fails every comparison, inf the range
+        ok = math.isfinite(v) if lo is None or hi is None else lo[0] <= v <= hi[0]
+        if ok:
+            p[offset] = v
+        return ok
+    if type(value) is not tuple or len(value) != size:
+        return False
+    vs = []
+    for k, x in enumerate(value):
+        if type(x) not in _FLOATS:
+            return False
+        v = float(x)
+        if not (math.isfinite(v) if lo is None or hi is None else lo[k] <= v <= hi[k]):
+            return False
+        vs.append(v)
+    p[offset : offset + size] = vs
+    return True
 
 
 def check_requirements(holds: np.ndarray, messages: list[str], concept: str) -> None:

@@ -6,8 +6,10 @@ the instance pose and R its rotation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,8 +27,16 @@ _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def _pose(value: Any) -> np.ndarray:
+    """A validated rigid 4x4 pose (the identity for None); a float64 array passes unchanged."""
     if value is None:
         return np.eye(4)
+    if (
+        type(value) is np.ndarray
+        and value.shape == (4, 4)
+        and value.dtype == np.float64
+        and _plainly_rigid(value.tolist())
+    ):
+        return value
     m = np.asarray(value, dtype=float)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise ParameterError(f"pose must be a finite 4x4 matrix, got shape {m.shape}")
@@ -36,6 +46,25 @@ def _pose(value: Any) -> np.ndarray:
             "pose must be a rigid transform (orthonormal rotation, last row 0 0 0 1)"
         )
     return m
+
+
+def _plainly_rigid(rows: list[list[float]]) -> bool:
+    """The checks of ``_pose`` in plain floats (numpy's per-call overhead is 20x the work);
+    False sends the pose through the numpy checks, which decide and explain."""
+    (a, b, c, x), (d, e, f, y), (g, h, i, z), last = rows
+    if last != [0.0, 0.0, 0.0, 1.0] or not math.isfinite(
+        a + b + c + d + e + f + g + h + i + x + y + z
+    ):
+        return False
+    tol = 1e-6  # columns orthonormal: R^T R = I
+    return (
+        abs(a * a + d * d + g * g - 1.0) <= tol
+        and abs(b * b + e * e + h * h - 1.0) <= tol
+        and abs(c * c + f * f + i * i - 1.0) <= tol
+        and abs(a * b + d * e + g * h) <= tol
+        and abs(a * c + d * f + g * i) <= tol
+        and abs(b * c + e * f + h * i) <= tol
+    )
 
 
 @dataclass(frozen=True)
@@ -54,26 +83,24 @@ class Instance:
         concept: Concept, pose: Any, joints: Mapping[str, float], params: Mapping[str, Any]
     ) -> Instance:
         p = concept.pack(**params)
-        _, holds = concept.function("requires")(p)
-        check_requirements(
-            np.atleast_1d(holds).reshape(-1),
-            [r["message"] for r in concept.entry["requires"]],
-            concept.name,
-        )
+        holds = concept.function("requires")(p)[1].ravel().tolist()
+        if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
+            check_requirements(np.array(holds), list(concept.requirement_messages), concept.name)
         q = np.zeros(len(concept.moving_joints))
-        lo, hi = (np.atleast_1d(x).reshape(-1) for x in concept.function("joint_limits")(p))
-        for name, value in joints.items():
-            if name not in concept.moving_joints:
-                raise UnknownNameError(
-                    f"{concept.name} has no moving joint {name!r}"
-                    + suggest(name, concept.moving_joints)
-                )
-            i = concept.moving_joints.index(name)
-            if not np.isfinite(value) or not lo[i] - 1e-12 <= value <= hi[i] + 1e-12:
-                raise ParameterError(
-                    f"joint {name} = {value!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
-                )
-            q[i] = float(value)
+        if joints:
+            lo, hi = (x.ravel().tolist() for x in concept.function("joint_limits")(p))
+            for name, value in joints.items():
+                if name not in concept.moving_joints:
+                    raise UnknownNameError(
+                        f"{concept.name} has no moving joint {name!r}"
+                        + suggest(name, concept.moving_joints)
+                    )
+                i = concept.moving_joints.index(name)
+                if not math.isfinite(value) or not lo[i] - 1e-12 <= value <= hi[i] + 1e-12:
+                    raise ParameterError(
+                        f"joint {name} = {value!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
+                    )
+                q[i] = float(value)
         return Instance(concept, p, q, _pose(pose))
 
     # -- parameters and structure
@@ -144,7 +171,7 @@ class Instance:
     def _free_box(self, name: str) -> tuple[np.ndarray, ...]:
         if name not in self._ranges:
             outputs = self.concept.function("grasp_range", name)(self.p)
-            self._ranges[name] = tuple(np.atleast_1d(x).reshape(-1) for x in outputs)
+            self._ranges[name] = tuple(x.reshape(-1) for x in outputs)
         return self._ranges[name]
 
     def _free_vector(self, name: str, free: Mapping[str, float]) -> np.ndarray:
@@ -186,11 +213,11 @@ class Instance:
         symmetric grasps are spun to ``reference`` as in :meth:`grasp`."""
         if n < 1:
             raise ParameterError(f"n must be positive, got {n}")
-        ranges = list(self.grasp_range(name).values())
-        samples = _spread(ranges, n)
-        poses = self.concept.function("grasp", name).batch(self.p, self.q, samples)
-        poses = np.einsum("ij,njk->nik", self.pose, np.asarray(poses).reshape(-1, 4, 4))
-        if self.concept.grasps[name].get("symmetric"):
+        entry = self._grasp_entry(name)
+        lo, hi, _ = self._free_box(name)
+        samples = _spread_box(lo, hi, n)
+        poses = self.pose @ self.concept.function("grasp", name).batch(self.p, self.q, samples)
+        if entry.get("symmetric"):
             axes = self.concept.function("grasp_axis", name).batch(self.p, samples)
             poses = spin_to_reference(poses, np.asarray(axes).reshape(-1, 3), reference)
         return poses
@@ -211,10 +238,11 @@ class Instance:
     def force(self, action: str, grasp: Any) -> np.ndarray:
         """Unit world direction in which the gripper at pose ``grasp`` must push or pull."""
         self._action(action)
-        point = np.linalg.solve(self.pose, _pose(grasp)[:, 3])[:3]
-        f_local = np.asarray(self.concept.function("force", action)(self.p, self.q, point))
-        f = self.pose[:3, :3] @ f_local.reshape(3)
-        if not np.all(np.isfinite(f)):
+        rotation = self.pose[:3, :3]
+        point = (_pose(grasp)[:3, 3] - self.pose[:3, 3]) @ rotation  # R^T (t - t_M): concept frame
+        f_local = self.concept.function("force", action)(self.p, self.q, point)
+        f = rotation @ f_local.reshape(3)
+        if not math.isfinite(f[0] + f[1] + f[2]):
             raise ParameterError(
                 f"the grasp point lies on the axis of {action}'s joint: no linear force moves "
                 f"it; turn the hand instead (inst.twist({action!r})) or grasp off the axis"
@@ -270,15 +298,32 @@ class Instance:
 
 def _spread(ranges: list[tuple[float, float]], n: int) -> np.ndarray:
     """Deterministic points over a box: a grid along one axis, a Halton sequence in more."""
-    if not ranges:
+    lows = np.array([r[0] for r in ranges], dtype=float)
+    highs = np.array([r[1] for r in ranges], dtype=float)
+    return _spread_box(lows, highs, n)
+
+
+def _spread_box(lows: np.ndarray, highs: np.ndarray, n: int) -> np.ndarray:
+    """``_spread`` over the box [lows, highs] given as arrays, (n, d)."""
+    d = lows.size
+    if d == 0:
         return np.zeros((n, 0))
-    if len(ranges) == 1:
-        return np.linspace(ranges[0][0], ranges[0][1], n).reshape(n, 1)
-    primes = [2, 3, 5, 7, 11, 13, 17, 19]
-    pts = np.array([[_halton(i + 1, primes[d]) for d in range(len(ranges))] for i in range(n)])
-    lows = np.array([r[0] for r in ranges])
-    highs = np.array([r[1] for r in ranges])
-    return lows + pts * (highs - lows)
+    if d == 1:  # Python floats: a third of the cost of size-1 array arithmetic
+        lo = float(lows[0])
+        return _unit_points(n, 1) * (float(highs[0]) - lo) + lo
+    return lows + _unit_points(n, d) * (highs - lows)
+
+
+@lru_cache(maxsize=128)
+def _unit_points(n: int, d: int) -> np.ndarray:
+    """The spread over the unit box, computed once per (n, d) (read-only)."""
+    if d == 1:
+        pts = np.linspace(0.0, 1.0, n).reshape(n, 1)
+    else:
+        primes = [2, 3, 5, 7, 11, 13, 17, 19]
+        pts = np.array([[_halton(i + 1, primes[k]) for k in range(d)] for i in range(n)])
+    pts.flags.writeable = False
+    return pts
 
 
 def _halton(i: int, base: int) -> float:

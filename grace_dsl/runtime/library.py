@@ -18,7 +18,7 @@ import numpy as np
 from grace_dsl.compiler import native
 from grace_dsl.compiler.build import BuildResult, Progress, Unit, build, load_unit
 from grace_dsl.lang.diagnostics import render_all
-from grace_dsl.runtime.concept import ParamSpec, pack_params, suggest
+from grace_dsl.runtime.concept import ParamPacker, ParamSpec, suggest
 from grace_dsl.runtime.errors import CompileError, UnknownNameError
 
 
@@ -51,6 +51,9 @@ class Concept:
         self.joints: dict[str, dict[str, Any]] = {j["name"]: j for j in entry["joints"]}
         self.links: tuple[str, ...] = tuple(link["name"] for link in entry["links"])
         self.parts: dict[str, str] = dict(entry["parts"])
+        self._packer = ParamPacker.of(self.params)
+        self._evaluators: dict[str, Any] = {}  # function key -> evaluator, filled on first use
+        self.requirement_messages: tuple[str, ...] = tuple(r["message"] for r in entry["requires"])
 
     def __repr__(self) -> str:
         return f"<Concept {self.name}: {len(self.params)} params, {len(self.grasps)} grasps>"
@@ -62,9 +65,15 @@ class Concept:
     def function(self, kind: str, name: str = "") -> Any:
         key = f"{kind}:{name}" if name else kind
         try:
-            return self._functions.get(self.entry["functions"][key])
+            return self._evaluators[key]
+        except KeyError:
+            pass
+        try:
+            evaluator = self._functions.get(self.entry["functions"][key])
         except KeyError:
             raise UnknownNameError(f"{self.name} has no {kind} {name!r}") from None
+        self._evaluators[key] = evaluator
+        return evaluator
 
     def defaults(self) -> dict[str, Any]:
         return {
@@ -74,7 +83,7 @@ class Concept:
 
     def pack(self, **values: Any) -> np.ndarray:
         """The flat SI parameter vector of ``values`` (defaults for the rest), validated."""
-        return pack_params(self.params, values, self.name)
+        return self._packer.pack(values, self.name)
 
     def instantiate(
         self, pose: Any = None, joints: Mapping[str, float] | None = None, **params: Any
