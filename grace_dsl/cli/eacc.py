@@ -92,6 +92,13 @@ def _parser() -> argparse.ArgumentParser:
     add_gallery_arguments(ga)
     _search_path(ga)
     ga.set_defaults(run=cmd_gallery)
+
+    from grace_dsl.cli.verify import add_verify_arguments
+
+    v = sub.add_parser("verify", help="check every concept's grasps and actions over random draws")
+    add_verify_arguments(v)
+    _search_path(v)
+    v.set_defaults(run=cmd_verify)
     return p
 
 
@@ -394,6 +401,16 @@ def cmd_gallery(args: argparse.Namespace) -> int:
 
     lib = _library(args.paths, args.search_path)
     return 1 if lib is None else run_gallery(args, lib)
+
+
+# ---- verify -------------------------------------------------------------------------------------
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    from grace_dsl.cli.verify import run_verify
+
+    lib = _library(args.paths, args.search_path)
+    return 1 if lib is None else run_verify(args, lib)
 
 
 if __name__ == "__main__":

@@ -122,5 +122,6 @@ def box_surface_grid(box: FingerBox, spacing: float) -> np.ndarray:
 
 def finger_points(gripper: Gripper, width: float, spacing: float = 0.002) -> np.ndarray:
     """(N, 3) sample points on the surfaces of both pads at opening ``width``, gripper frame:
-    where a penetration check evaluates the part's signed distance."""
+    where a penetration check evaluates the part's signed distance. The -y pad's points come
+    first, as many as the +y pad's."""
     return np.concatenate([box_surface_grid(b, spacing) for b in gripper.finger_boxes(width)])

@@ -57,7 +57,7 @@ TOUCH = 1e-6  # m: a surface the segment between the pads touches counts as mate
 UNIT = 1e-9  # tolerance on |force| = 1
 FREE_SAMPLES = 5  # free-parameter values per grasp family (spread over its box)
 FOLLOW_STEPS = 8
-MAX_ATTEMPTS = 20  # draws attempted per requested draw before giving up on a tight `require`
+MAX_ATTEMPTS = 50  # draws attempted per requested draw before giving up on a tight `require`
 TWIST_VERBS = ("turn", "rotate")  # a grasp on these actions' axis is turned, not pushed
 
 CHECKS = ("near", "between", "width", "penetration", "into", "power", "unit_force", "follow")
@@ -379,8 +379,7 @@ class _Run:
             geo = _Geometry(state)
             samples = {g: self._samples(state, g) for g in self.concept.grasps}
             for ss in samples.values():
-                for s in ss:
-                    self._check_grasp(state, geo, s)
+                self._check_grasp(state, geo, ss)
             for action, entry in self.concept.actions.items():
                 for g in _action_grasps(self.concept, entry):
                     for s in samples[g]:
@@ -423,68 +422,107 @@ class _Run:
         )
         self._worst[key] = (m.badness, failure)
 
-    # -- grasps
-    def _check_grasp(self, inst: Instance, geo: _Geometry, s: _Sample) -> None:
-        mode = self.concept.grasps[s.grasp].get("mode", "pinch")
-        held = geo.held_shapes(s.grasp)
-        d = float(geo.sdf(s.pose[None, :3, 3], held)[0])
-        message = f"the origin is {d * 1e3:.2f} mm from the part it grasps"
-        self._record(inst, s.grasp, s, _at_most("near", d, NEAR, "mm", message))
+    # -- grasps (all samples of a family at once: one signed-distance query per check)
+    def _check_grasp(self, inst: Instance, geo: _Geometry, samples: list[_Sample]) -> None:
+        grasp = samples[0].grasp
+        mode = self.concept.grasps[grasp].get("mode", "pinch")
+        held = geo.held_shapes(grasp)
+        origins = np.array([s.pose[:3, 3] for s in samples])
+        for s, d in zip(samples, geo.sdf(origins, held)):
+            message = f"the origin is {d * 1e3:.2f} mm from the part it grasps"
+            self._record(inst, grasp, s, _at_most("near", float(d), NEAR, "mm", message))
         if mode == "pinch":
-            self._check_pinch(inst, geo, s, held)
-        else:
-            self._check_contact(inst, geo, s, held, mode)
-
-    def _check_pinch(self, inst: Instance, geo: _Geometry, s: _Sample, held: list[str]) -> None:
-        origin, y = s.pose[:3, 3], s.pose[:3, 1]
-        declared = inst.grasp_width(s.grasp)
-        if declared is None:
-            width, what = _material_width(geo, held, origin, y, self.gripper), "material"
-        else:
-            width, what = declared, "declared"
-        top = self.gripper.max_width
-        fits = 0.0 < width <= top + 1e-12
-        message = (
-            f"the {what} width is {width * 1e3:.2f} mm; {self.gripper.name} pinches "
-            f"widths in (0, {top * 1e3:g}] mm"
-        )
-        miss = max(width - top, -width)
-        measure = _Measure("width", fits, miss, width * 1e3, top * 1e3, "mm", message)
-        self._record(inst, s.grasp, s, measure)
-        half = max(width, 0.0) / 2
-        segment = origin + np.linspace(-half, half, 41)[:, None] * y
-        gap = float(np.min(geo.sdf(segment, held)))
-        message = (
-            f"no material between the pads: the part is {gap * 1e3:.2f} mm from the segment "
-            "between their inner faces"
-        )
-        between = _at_most("between", gap, 0.0, "mm", message)
-        self._record(inst, s.grasp, s, replace(between, ok=gap <= TOUCH))
-        if fits:
-            self._check_penetration(inst, geo, s, width)
-
-    def _check_contact(
-        self, inst: Instance, geo: _Geometry, s: _Sample, held: list[str], mode: str
-    ) -> None:
-        self._check_penetration(inst, geo, s, 0.0)
-        if mode not in ("push", "press"):
+            self._check_pinch(inst, geo, samples, held)
             return
-        origin, z = s.pose[:3, 3], s.pose[:3, 2]
-        h = 5e-4
-        d = geo.sdf(np.array([origin + h * z, origin - h * z]), held)
-        slope = float((d[0] - d[1]) / (2 * h))
-        message = (
-            f"+z of a {mode} grasp must point into the material; the part's distance changes "
-            f"by {slope:+.3f} per unit step along +z"
-        )
-        self._record(inst, s.grasp, s, _Measure("into", slope < 0, slope, slope, 0.0, "", message))
+        self._check_penetration(inst, geo, samples, [0.0] * len(samples))
+        if mode in ("push", "press"):
+            self._check_into(inst, geo, samples, held, mode)
 
-    def _check_penetration(self, inst: Instance, geo: _Geometry, s: _Sample, width: float) -> None:
-        local = self._closed if width == 0.0 else finger_points(self.gripper, width)
-        world = local @ s.pose[:3, :3].T + s.pose[:3, 3]
-        depth = -float(np.min(geo.sdf(world)))
-        message = f"the pads closed to {width * 1e3:.2f} mm enter the instance {depth * 1e3:.2f} mm"
-        self._record(inst, s.grasp, s, _at_most("penetration", depth, PENETRATION, "mm", message))
+    def _check_pinch(
+        self, inst: Instance, geo: _Geometry, samples: list[_Sample], held: list[str]
+    ) -> None:
+        declared = inst.grasp_width(samples[0].grasp)
+        widths = [
+            declared
+            if declared is not None
+            else _material_width(geo, held, s.pose[:3, 3], s.pose[:3, 1], self.gripper)
+            for s in samples
+        ]
+        what = "declared" if declared is not None else "material"
+        top = self.gripper.max_width
+        fitting = []
+        for s, width in zip(samples, widths):
+            fits = 0.0 < width <= top + 1e-12
+            message = (
+                f"the {what} width is {width * 1e3:.2f} mm; {self.gripper.name} pinches widths "
+                f"in (0, {top * 1e3:g}] mm"
+            )
+            miss = max(width - top, -width)
+            measure = _Measure("width", fits, miss, width * 1e3, top * 1e3, "mm", message)
+            self._record(inst, s.grasp, s, measure)
+            if fits:
+                fitting.append((s, width))
+        steps = np.linspace(-0.5, 0.5, 41)
+        segments = np.concatenate(
+            [s.pose[:3, 3] + (max(w, 0.0) * steps)[:, None] * s.pose[:3, 1]
+             for s, w in zip(samples, widths)]
+        )  # fmt: skip
+        gaps = geo.sdf(segments, held).reshape(len(samples), -1).min(axis=1)
+        for s, gap in zip(samples, gaps):
+            message = (
+                f"no material between the pads: the part is {gap * 1e3:.2f} mm from the segment "
+                "between their inner faces"
+            )
+            between = _at_most("between", float(gap), 0.0, "mm", message)
+            self._record(inst, s.grasp, s, replace(between, ok=bool(gap <= TOUCH)))
+        if fitting:
+            self._check_penetration(inst, geo, [s for s, _ in fitting], [w for _, w in fitting])
+
+    def _check_into(
+        self, inst: Instance, geo: _Geometry, samples: list[_Sample], held: list[str], mode: str
+    ) -> None:
+        h = 5e-4
+        probes = np.concatenate(
+            [
+                [s.pose[:3, 3] + h * s.pose[:3, 2], s.pose[:3, 3] - h * s.pose[:3, 2]]
+                for s in samples
+            ]
+        )
+        d = geo.sdf(probes, held).reshape(len(samples), 2)
+        for s, (ahead, behind) in zip(samples, d):
+            slope = float((ahead - behind) / (2 * h))
+            message = (
+                f"+z of a {mode} grasp must point into the material; the part's distance "
+                f"changes by {slope:+.3f} per unit step along +z"
+            )
+            measure = _Measure("into", slope < 0, slope, slope, 0.0, "", message)
+            self._record(inst, s.grasp, s, measure)
+
+    def _check_penetration(
+        self, inst: Instance, geo: _Geometry, samples: list[_Sample], widths: list[float]
+    ) -> None:
+        pads = [self._pads(w) for w in widths]
+        world = np.concatenate(
+            [p @ s.pose[:3, :3].T + s.pose[:3, 3] for s, p in zip(samples, pads)]
+        )
+        d = geo.sdf(world)
+        start = 0
+        for s, w, p in zip(samples, widths, pads):
+            depth = -float(d[start : start + len(p)].min())
+            start += len(p)
+            message = f"the pads closed to {w * 1e3:.2f} mm enter the instance {depth * 1e3:.2f} mm"
+            self._record(
+                inst, s.grasp, s, _at_most("penetration", depth, PENETRATION, "mm", message)
+            )
+
+    def _pads(self, width: float) -> np.ndarray:
+        """The pads' surface points at opening ``width``: the closed grid, each pad moved out
+        along y by half the width (the -y pad's points come first)."""
+        out = self._closed.copy()
+        half = len(out) // 2
+        out[:half, 1] -= width / 2
+        out[half:, 1] += width / 2
+        return out
 
     # -- actions
     def _check_action(
@@ -536,14 +574,12 @@ class _Run:
         to = float(self.rng.uniform(lo, hi))
         path = inst.follow(action, grasp=s.pose, to=to, steps=FOLLOW_STEPS)
         link = self.concept.function("link", self.concept.grasps[s.grasp]["link"])
-        start = inst.pose @ np.asarray(link(inst.p, inst.q), float)
-        attached = np.linalg.solve(start, s.pose)
-        drift = 0.0
-        for k, value in enumerate(np.linspace(q0, to, FOLLOW_STEPS)):
-            q = inst.q.copy()
-            q[i] = value
-            want = inst.pose @ np.asarray(link(inst.p, q), float) @ attached
-            drift = max(drift, float(np.abs(path[k] - want).max()))
+        qs = np.tile(inst.q, (FOLLOW_STEPS, 1))
+        qs[:, i] = np.linspace(q0, to, FOLLOW_STEPS)
+        poses = np.asarray(link.batch(inst.p, qs), float).reshape(-1, 4, 4)
+        attached = np.linalg.solve(inst.pose @ np.asarray(link(inst.p, inst.q), float), s.pose)
+        want = np.einsum("ij,njk,kl->nil", inst.pose, poses, attached)
+        drift = float(np.abs(path - want).max())
         message = (
             f"the followed grasp drifts {drift:.2e} from its link as {joint} moves to {to:.4g}"
         )
@@ -567,33 +603,43 @@ def _grasp_velocity(inst: Instance, link: str, joint: str, grasp: np.ndarray) ->
     fn = inst.concept.function("link", link)
     i = inst.concept.moving_joints.index(joint)
     h = 1e-6
-    dq = np.zeros_like(inst.q)
-    dq[i] = h
-    at = np.linalg.solve(inst.pose @ np.asarray(fn(inst.p, inst.q), float), grasp[:, 3])
-    ahead = np.asarray(fn(inst.p, inst.q + dq), float)
-    behind = np.asarray(fn(inst.p, inst.q - dq), float)
-    return (inst.pose @ ((ahead - behind) @ at))[:3] / (2 * h)
+    qs = np.tile(inst.q, (3, 1))
+    qs[:, i] += (-h, 0.0, h)
+    behind, at, ahead = np.asarray(fn.batch(inst.p, qs), float).reshape(3, 4, 4)
+    point = np.linalg.solve(inst.pose @ at, grasp[:, 3])
+    return (inst.pose @ ((ahead - behind) @ point))[:3] / (2 * h)
 
 
 def _material_width(
     geo: _Geometry, held: list[str], origin: np.ndarray, y: np.ndarray, gripper: Gripper
 ) -> float:
-    """Width of the material the pads would close on: the run of points inside the part along
-    +y through the origin nearest to it (0 when there is none within the hand's reach)."""
-    step = 2.5e-4
-    reach = max(gripper.max_width, 0.01)
-    t = np.arange(-reach, reach + step / 2, step)
+    """Width of the material the pads would close on: along +y through the origin, the run of
+    points inside the part nearest to the origin (a 1 mm scan over +-0.5 m or twice the hand's
+    opening, its ends refined by bisection); 0 when there is none."""
+    reach = max(2 * gripper.max_width, 0.5)
+    t = np.arange(-reach, reach + 5e-4, 1e-3)
     inside = geo.sdf(origin + t[:, None] * y, held) <= 0
     if not inside.any():
         return 0.0
     idx = np.flatnonzero(inside)
-    centre = int(idx[np.argmin(np.abs(t[idx]))])
-    lo = hi = centre
+    lo = hi = int(idx[np.argmin(np.abs(t[idx]))])
     while lo > 0 and inside[lo - 1]:
         lo -= 1
     while hi < len(t) - 1 and inside[hi + 1]:
         hi += 1
-    return float(t[hi] - t[lo] + step)
+
+    def edge(a: float, b: float) -> float:  # a inside, b outside (or the end of the scan)
+        for _ in range(30):
+            m = (a + b) / 2
+            if geo.sdf((origin + m * y)[None], held)[0] <= 0:
+                a = m
+            else:
+                b = m
+        return (a + b) / 2
+
+    low = t[lo] if lo == 0 else edge(float(t[lo]), float(t[lo - 1]))
+    high = t[hi] if hi == len(t) - 1 else edge(float(t[hi]), float(t[hi + 1]))
+    return float(high - low)
 
 
 # ---- display -----------------------------------------------------------------------------------
