@@ -61,7 +61,7 @@ class ParamSpec:
         """A user value as the entries of the parameter vector, validated."""
         if self.kind == "choice":
             assert self.choices is not None
-            if value not in self.choices:
+            if not isinstance(value, str) or value not in self.choices:
                 raise ParameterError(
                     f"{self.name} must be one of {list(self.choices)}, not {value!r}"
                 )
@@ -168,12 +168,13 @@ class ParamPacker:
                     f"{concept} has no parameter {name!r}" + suggest(name, by_name)
                 )
         p = self.default.copy()
-        for name, value in values.items():
-            slot = self.fast.get(name)
-            if slot is not None and _put_fast(p, slot, value):
-                continue
-            s = by_name[name]
-            p[s.offset : s.offset + s.size] = s.encode(value)
+        slow = [
+            by_name[name]
+            for name, value in values.items()
+            if (slot := self.fast.get(name)) is None or not _put_fast(p, slot, value)
+        ]
+        for s in sorted(slow, key=lambda s: s.offset):  # errors in declaration order
+            p[s.offset : s.offset + s.size] = s.encode(values[s.name])
         return p
 
 
