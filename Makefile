@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test lint bench gallery system-deps clean
+.PHONY: demo test lint bench verify gallery system-deps clean
 
 demo: $(STAMP)
 	$(BIN)/grace demo
@@ -21,6 +21,10 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_eval.py
+
+# every concept of the standard library, 200 random draws each (docs/benchmarks.md, verification)
+verify: $(STAMP)
+	$(BIN)/python bench/bench_verify.py
 
 # docs/gallery: a picture of every concept of the standard library and every primitive
 gallery: $(STAMP)

@@ -1,0 +1,89 @@
+"""The full verification of the standard library: every concept, 200 valid draws each.
+
+Run: ``.venv/bin/python bench/bench_verify.py [--draws 200] [--seed 0]`` (``make verify``). Prints
+one line per concept and writes bench/results/verify.json: the time per concept, the draws made
+and accepted, the number of checks evaluated per kind, the failures, the machine and the load.
+Exits 1 when a check fails, like ``eacc verify``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import grace_dsl as eac
+from grace_dsl.runtime.gripper import Gripper
+from grace_dsl.runtime.verify import concept_seed, verifiable, verify_concept
+
+RESULTS = Path(__file__).resolve().parent / "results" / "verify.json"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--draws", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    started = time.perf_counter()
+    lib = eac.load_library()
+    load = time.perf_counter() - started
+    rows = []
+    gripper = Gripper.panda()
+    for name in verifiable(lib):
+        t0 = time.perf_counter()
+        report = verify_concept(lib[name], args.draws, concept_seed(args.seed, name), gripper)
+        seconds = time.perf_counter() - t0
+        checks = sum(report.evaluated.values())
+        rows.append(
+            {
+                "concept": name,
+                "seconds": round(seconds, 2),
+                "draws": report.draws,
+                "attempts": report.attempts,
+                "checks": checks,
+                "evaluated": report.evaluated,
+                "failures": len(report.failures),
+                "note": report.note,
+            }
+        )
+        print(
+            f"{name:16s} {seconds:6.1f} s  {report.draws:4d}/{report.attempts:5d} draws  "
+            f"{checks:7d} checks  {len(report.failures)} failures {report.note}",
+            flush=True,
+        )
+    total = time.perf_counter() - started
+    summary = {
+        "command": " ".join(["bench/bench_verify.py", *sys.argv[1:]]),
+        "draws": args.draws,
+        "seed": args.seed,
+        "gripper": gripper.name,
+        "concepts": len(rows),
+        "checks": sum(r["checks"] for r in rows),
+        "failures": sum(r["failures"] for r in rows),
+        "seconds_load_library": round(load, 1),
+        "seconds_total": round(total, 1),
+        "median_seconds_per_concept": float(np.median([r["seconds"] for r in rows])),
+        "machine": {
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "load_average": os.getloadavg(),
+        },
+        "per_concept": rows,
+    }
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(summary, indent=2) + "\n")
+    print(
+        f"{summary['concepts']} concepts, {summary['checks']} checks, {summary['failures']} "
+        f"failures in {total:.0f} s (library load {load:.0f} s) -> {RESULTS}"
+    )
+    return 1 if summary["failures"] else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
