@@ -75,6 +75,15 @@ def _parser() -> argparse.ArgumentParser:
     _search_path(e)
     e.set_defaults(run=cmd_explain)
 
+    pr = sub.add_parser("prompt", help="the concept catalog a vision-language model reads")
+    pr.add_argument("paths", nargs="*", help="default: the standard library")
+    pr.add_argument("--format", choices=("md", "json"), default="md")
+    pr.add_argument("--json", action="store_const", const="json", dest="format")
+    pr.add_argument("-o", "--output", type=Path, help="write here instead of stdout")
+    pr.add_argument("--concept", action="append", default=[], metavar="NAME", help="only these")
+    _search_path(pr)
+    pr.set_defaults(run=cmd_prompt)
+
     from grace_dsl.export.command import add_export_arguments
     from grace_dsl.render.command import add_gallery_arguments, add_show_arguments
 
@@ -373,6 +382,27 @@ def cmd_explain(args: argparse.Namespace) -> int:
                 for a in c.actions.values()
             ],
         )
+    return 0
+
+
+def cmd_prompt(args: argparse.Namespace) -> int:
+    from grace_dsl.runtime.catalog import build_catalog, render_json, render_markdown
+    from grace_dsl.runtime.errors import UnknownNameError
+
+    lib = _library(args.paths, args.search_path)
+    if lib is None:
+        return 1
+    try:
+        catalog = build_catalog(lib, args.concept or None)
+    except UnknownNameError as exc:
+        sys.stderr.write(f"eacc: {exc.args[0]}\n")
+        return 1
+    text = render_json(catalog) if args.format == "json" else render_markdown(catalog)
+    if args.output is None:
+        sys.stdout.write(text)
+    else:
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        args.output.write_text(text, encoding="utf-8")
     return 0
 
 
