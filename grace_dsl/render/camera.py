@@ -19,6 +19,7 @@ ELEVATION = 25.0  # degrees above (+y)
 FOVY = 35.0  # vertical field of view, degrees
 MARGIN = 1.08  # the outermost point is 1/MARGIN of the way from the centre to the edge
 MIN_DISTANCE = 1e-3  # metres: a single point is still seen from somewhere
+NEAR = 0.25  # no point nearer to the camera than this fraction of the scene's diagonal
 
 
 @dataclass(frozen=True)
@@ -76,26 +77,24 @@ def frame_points(
     up = np.cross(back, right)
     ty = math.tan(math.radians(fovy) / 2) / margin  # the margin narrows the usable field
     tx = ty * aspect
-    target = (pts.min(axis=0) + pts.max(axis=0)) / 2
-    for _ in range(3):  # centre the projected extent: perspective shifts it a little each time
-        dist = max(_fit_distance(pts - target, right, up, back, tx, ty), MIN_DISTANCE)
-        rel = pts - target
-        depth = dist - rel @ back
-        x, y = (rel @ right) / depth, (rel @ up) / depth
-        shift = (x.max() + x.min()) / 2 * right + (y.max() + y.min()) / 2 * up
-        target = target + shift * dist
-    dist = max(_fit_distance(pts - target, right, up, back, tx, ty), MIN_DISTANCE)
+    origin = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    rel = pts - origin
+    a = rel @ back  # how far each point stands out towards the camera
+    sx, dx = _fit_axis(rel @ right, a, tx)
+    sy, dy = _fit_axis(rel @ up, a, ty)
+    clearance = max(NEAR * float(np.linalg.norm(np.ptp(pts, axis=0))), MIN_DISTANCE)
+    dist = max(dx, dy, float(a.max()) + clearance)  # never inside the scene
+    target = origin + sx * right + sy * up
     eye = target + dist * back
     return View(_v(eye), _v(target), _v(up), fovy)
 
 
-def _fit_distance(
-    rel: np.ndarray, right: np.ndarray, up: np.ndarray, back: np.ndarray, tx: float, ty: float
-) -> float:
-    """The least eye distance at which every point lies inside the frustum."""
-    along = rel @ back
-    need = along + np.maximum(np.abs(rel @ up) / ty, np.abs(rel @ right) / tx)
-    return float(need.max())
+def _fit_axis(x: np.ndarray, a: np.ndarray, t: float) -> tuple[float, float]:
+    """The sideways shift s of the camera and the least distance D with every point inside
+    ``|x_i - s| <= t (D - a_i)`` (x across the image, a towards the camera; a linear program
+    in s and D, solved in closed form): the extremes then touch both edges symmetrically."""
+    hi, lo = float(np.max(x + t * a)), float(np.min(x - t * a))
+    return (hi + lo) / 2, (hi - lo) / (2 * t)
 
 
 def _v(a: np.ndarray) -> Vec3:

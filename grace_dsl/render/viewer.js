@@ -307,18 +307,22 @@
     canvas.height = Math.max(1, Math.round(canvas.clientHeight * dpr));
   }
 
+  // one draw per burst of events; a timer rather than requestAnimationFrame, which headless and
+  // background pages may never run
   var pending = false;
   function redraw() {
     if (pending) return;
     pending = true;
-    window.requestAnimationFrame(function () { pending = false; render(); });
+    window.setTimeout(function () { pending = false; render(); }, 0);
   }
   function render() { if (draw) draw(matrices()); }
 
   var drag = null;
   canvas.addEventListener("pointerdown", function (ev) {
     drag = { x: ev.clientX, y: ev.clientY, pan: ev.shiftKey || ev.button === 2 };
-    if (canvas.setPointerCapture) canvas.setPointerCapture(ev.pointerId);
+    try {
+      canvas.setPointerCapture(ev.pointerId);  // keep orbiting when the pointer leaves the canvas
+    } catch (err) { /* synthetic or already released pointers cannot be captured */ }
   });
   canvas.addEventListener("pointermove", function (ev) {
     if (!drag) return;
@@ -343,8 +347,9 @@
   }, { passive: false });
   canvas.addEventListener("dblclick", function () { reset(); redraw(); });
   window.addEventListener("keydown", function (ev) { if (ev.key === "r") { reset(); redraw(); } });
-  window.addEventListener("resize", function () { resize(); redraw(); });
+  // resizing clears the canvas: draw again at once, not on a timer
+  window.addEventListener("resize", function () { resize(); render(); });
 
   resize();
-  render();  // at once, so a page loaded without animation frames (headless) still shows it
+  render();  // at once, so the page shows the scene as soon as it is loaded
 })();

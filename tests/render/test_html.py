@@ -101,3 +101,61 @@ def test_chromium_draws_the_page(scene, tmp_path) -> None:
 def test_chromium_draws_the_canvas_2d_fallback(scene, tmp_path) -> None:
     page = write_html(scene, tmp_path / "box.html")
     _check_drawn(_screenshot(page, tmp_path / "shot2d.png", "#2d"))
+
+
+PROBE = """
+<script>
+window.addEventListener("error", function (e) {
+  document.body.setAttribute("data-error", String(e.message));
+});
+function later(f) { setTimeout(f, 300); }
+setTimeout(function () {
+  var c = document.getElementById("view");
+  c.dispatchEvent(new MouseEvent("dblclick", { bubbles: true }));
+  later(probe);
+  function probe() {
+  var before = c.toDataURL();
+  var at = { clientX: 300, clientY: 200, bubbles: true, pointerId: 1, button: 0 };
+  c.dispatchEvent(new PointerEvent("pointerdown", at));
+  c.dispatchEvent(new PointerEvent("pointermove", Object.assign({}, at, { clientX: 380 })));
+  window.dispatchEvent(new PointerEvent("pointerup", at));
+  c.dispatchEvent(new WheelEvent("wheel", { deltaY: 300, bubbles: true, cancelable: true }));
+  later(function () {
+    var orbited = c.toDataURL();
+    c.dispatchEvent(new MouseEvent("dblclick", { bubbles: true }));
+    later(function () {
+      document.body.setAttribute("data-moved", String(orbited !== before));
+      document.body.setAttribute("data-reset", String(c.toDataURL() === before));
+    });
+  });
+  }
+}, 100);
+</script>
+</body>"""
+
+
+@needs_chromium
+@pytest.mark.parametrize("fragment", ["", "#2d"])
+def test_orbit_zoom_and_reset_in_chromium(scene, tmp_path, fragment) -> None:
+    """Synthetic drag and wheel change the picture; a double-click restores the first view."""
+    page = tmp_path / "probe.html"
+    page.write_text(scene_html(scene).replace("</body>", PROBE), encoding="utf-8")
+    dom = subprocess.run(
+        [
+            str(chromium()),
+            "--headless",
+            "--no-sandbox",
+            "--window-size=640,480",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            page.resolve().as_uri() + fragment,
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
+    body = re.search(r"<body[^>]*>", dom)
+    assert body is not None
+    assert "data-error" not in body.group(0), body.group(0)
+    assert 'data-moved="true"' in body.group(0) and 'data-reset="true"' in body.group(0)
