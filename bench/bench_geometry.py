@@ -1,29 +1,45 @@
-"""Signed distance of 100,000 points to a 10-primitive union: grace_dsl.geometry vs trimesh.
+"""Geometry benchmarks: grace_dsl.geometry and the instance geometry against trimesh, same run.
 
-Run: ``.venv/bin/python bench/bench_geometry.py`` (writes bench/results/geometry.json).
-The union's SDF is the min over primitives of each primitive's SDF in its own frame (points
-moved by the inverse 4x4 pose). trimesh's ``mesh.contains`` and ``nearest.on_surface`` need
-rtree; when it is missing they are reported as unavailable and the rtree-free baselines run
-on a subset instead (``closest_point_naive`` and a numpy winding number), with per-point cost.
+Run: ``.venv/bin/python bench/bench_geometry.py [--part sdf|sampling|all]`` (writes
+bench/results/geometry.json; a single part updates only its section).
+
+- ``sdf``: signed distance of 100,000 points to a 10-primitive union, and of each primitive alone.
+  The union's SDF is the min over primitives of each primitive's SDF in its own frame (points
+  moved by the inverse 4x4 pose). trimesh's ``mesh.contains`` and ``nearest.on_surface`` need
+  rtree; when it is missing they are reported as unavailable and the rtree-free baselines run
+  on a subset instead (``closest_point_naive`` and a numpy winding number), with per-point cost.
+- ``sampling``: mesh and 10,000 surface samples of standard-library concept instances
+  (``Instance.mesh`` and ``Instance.sample_surface_with_normals``: exact, outer surface only)
+  against ``trimesh.sample.sample_surface`` on the same, already built mesh; per call, median
+  and minimum over ``--repeats`` runs, and how far each method's samples are from the surface.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import os
 import platform
+import statistics
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import trimesh
 
-from grace_dsl.geometry import primitive_mesh, primitive_sdf
+import grace_dsl as eac
+from grace_dsl.geometry import PRIMITIVES, primitive_mesh, primitive_sdf
 
 N_POINTS = 100_000
 N_SUBSET = 1_000
+N_SAMPLES = 10_000
+CONCEPTS = ("ChestOfDrawers", "Microwave")  # 16 shapes, most drawer area hidden; 7 shapes
+HIDDEN_PROBE = 2e-4  # m: a sample whose point 0.2 mm out along its normal is not outside is hidden
+RESULT = Path(__file__).parent / "results" / "geometry.json"
 SCENE: list[tuple[str, dict[str, Any]]] = [
     ("Cuboid", {"size": (0.3, 0.2, 0.1)}),
     ("Cylinder", {"radius": 0.05, "height": 0.2}),
@@ -96,7 +112,29 @@ def _row(method: str, n: int, seconds: float, note: str = "") -> dict[str, Any]:
     }
 
 
-def run() -> dict[str, Any]:
+def per_primitive(repeats: int = 5) -> list[dict[str, Any]]:
+    """Each primitive at its defaults, 100,000 points in a box 1.5x its bounds (interleaved)."""
+    from grace_dsl.geometry import bounds
+
+    calls: dict[str, Callable[[int], Any]] = {}
+    for name in PRIMITIVES:
+        lo, hi = bounds(name, {})
+        pad = 0.25 * (hi - lo)
+        pts = np.random.default_rng(1).uniform(lo - pad, hi + pad, (N_POINTS, 3))
+        calls[name] = partial(lambda i, name, pts: primitive_sdf(name, {}, pts), name=name, pts=pts)
+    stats, _ = _round_robin(calls, repeats)
+    return [
+        {
+            "primitive": name,
+            "median_s": t["median_s"],
+            "min_s": t["min_s"],
+            "ns_per_point": 1e9 * t["median_s"] / N_POINTS,
+        }
+        for name, t in stats.items()
+    ]
+
+
+def run_sdf() -> dict[str, Any]:
     rng = np.random.default_rng(0)
     scene = [(name, params, _pose(rng)) for name, params in SCENE]
     meshes = []
@@ -105,6 +143,7 @@ def run() -> dict[str, Any]:
         m.apply_transform(pose)
         meshes.append(m)
     union = trimesh.util.concatenate(meshes)
+    assert isinstance(union, trimesh.Trimesh)
     pts = rng.uniform(union.bounds[0] - 0.05, union.bounds[1] + 0.05, (N_POINTS, 3))
     sub = pts[:N_SUBSET]
     rows = []
@@ -120,8 +159,8 @@ def run() -> dict[str, Any]:
         try:
             t, _ = _time(call, repeat=1)
             rows.append(_row(label, n, t))
-        except ImportError as err:
-            rows.append({"method": label, "points": n, "note": f"unavailable: {err}"})
+        except ImportError as exc:
+            rows.append({"method": label, "points": n, "note": f"unavailable: {exc}"})
     t, (closest, dist, _) = _time(lambda: trimesh.proximity.closest_point_naive(union, sub), 1)
     rows.append(_row("trimesh closest_point_naive (no rtree)", N_SUBSET, t, "subset"))
     # a union of overlapping closed meshes: inside any part <=> winding number >= 0.5
@@ -130,20 +169,92 @@ def run() -> dict[str, Any]:
     agree = float(np.mean((wn > 0.5) == (d[:N_SUBSET] < 0)))
     err = float(np.max(np.abs(np.abs(d[:N_SUBSET]) - dist)))
     return {
-        "command": ".venv/bin/python bench/bench_geometry.py",
-        "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
-        "python": platform.python_version(),
-        "trimesh": trimesh.__version__,
         "primitives": [name for name, _ in SCENE],
         "mesh_faces": len(union.faces),
         "rows": rows,
         "sign_agreement_with_winding_number": agree,
         "max_abs_distance_difference_to_mesh_m": err,
+        "per_primitive": per_primitive(),
     }
 
 
-def main() -> None:
-    result = run()
+def _round_robin(
+    calls: dict[str, Callable[[int], Any]], repeats: int
+) -> tuple[dict[str, dict[str, float]], dict[str, Any]]:
+    """Median and minimum seconds per call of each function over ``repeats`` rounds; the calls
+    are interleaved (round i calls each with seed i), so background load hits all alike."""
+    times: dict[str, list[float]] = {k: [] for k in calls}
+    last: dict[str, Any] = {}
+    for i in range(repeats):
+        for key, fn in calls.items():
+            t0 = time.perf_counter()
+            last[key] = fn(i)
+            times[key].append(time.perf_counter() - t0)
+    stats = {k: {"median_s": statistics.median(v), "min_s": min(v)} for k, v in times.items()}
+    return stats, last
+
+
+def _quality(inst: eac.Instance, pts: np.ndarray, normals: np.ndarray) -> dict[str, float]:
+    """How far samples are from the instance's true surface, and the share on hidden faces
+    (inside another shape, or pressed against one): what a perception model should not see."""
+    d = inst.sdf(pts)
+    hidden = inst.sdf(pts + HIDDEN_PROBE * normals) <= 0
+    return {
+        "max_abs_sdf_m": float(np.max(np.abs(d))),
+        "mean_abs_sdf_m": float(np.mean(np.abs(d))),
+        "hidden_share": float(np.mean(hidden)),
+    }
+
+
+def sampling_case(lib: eac.Library, concept: str, repeats: int) -> dict[str, Any]:
+    inst = lib[concept].instantiate()
+    inst.sample_surface(16, seed=0)  # load the concept's functions outside the timings
+    mesh = inst.mesh()
+    stats, last = _round_robin(
+        {
+            "instance_mesh": lambda i: inst.mesh(),
+            "grace_dsl_sample_surface": lambda i: inst.sample_surface_with_normals(
+                N_SAMPLES, seed=i
+            ),
+            "trimesh_sample_surface_on_built_mesh": lambda i: trimesh.sample.sample_surface(
+                mesh, N_SAMPLES, seed=i
+            ),
+        },
+        repeats,
+    )
+    pts, nrm = last["grace_dsl_sample_surface"]
+    tm_pts, faces = last["trimesh_sample_surface_on_built_mesh"]
+    tm_nrm = np.asarray(mesh.face_normals)[faces]
+    ours, theirs, build = (
+        stats[k]["median_s"]
+        for k in (
+            "grace_dsl_sample_surface",
+            "trimesh_sample_surface_on_built_mesh",
+            "instance_mesh",
+        )
+    )
+    return {
+        "concept": concept,
+        "shapes": len(inst.concept.entry["shapes"]),
+        "mesh_faces": len(mesh.faces),
+        "samples": N_SAMPLES,
+        **stats,
+        "ratio_median_grace_over_trimesh": ours / theirs,
+        "ratio_median_grace_over_mesh_plus_trimesh": ours / (build + theirs),
+        "quality_grace_dsl": _quality(inst, pts, nrm),
+        "quality_trimesh": _quality(inst, np.asarray(tm_pts), tm_nrm),
+    }
+
+
+def run_sampling(concepts: tuple[str, ...], repeats: int) -> dict[str, Any]:
+    lib = eac.load_library()  # compiled and cached; not part of any timing
+    return {
+        "repeats": repeats,
+        "cases": [sampling_case(lib, c, repeats) for c in concepts],
+    }
+
+
+def _print_sdf(result: dict[str, Any]) -> None:
     print(f"{'method':<44}{'points':>8}{'time [s]':>11}{'us/point':>10}{'100k [s]':>10}")
     for r in result["rows"]:
         if "seconds" in r:
@@ -155,9 +266,60 @@ def main() -> None:
             print(f"{r['method']:<44}{r['points']:>8}  {r['note']}")
     print(f"sign agreement with winding number: {result['sign_agreement_with_winding_number']:.4f}")
     print(f"max | |sdf| - mesh distance |: {result['max_abs_distance_difference_to_mesh_m']:.2e} m")
-    out = Path(__file__).parent / "results" / "geometry.json"
-    out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {out}")
+    print("one primitive at its defaults, 100k points:")
+    for r in result["per_primitive"]:
+        print(
+            f"  {r['primitive']:<16}{r['seconds'] * 1e3:>9.2f} ms{r['ns_per_point']:>9.1f} ns/point"
+        )
+
+
+def _print_sampling(result: dict[str, Any]) -> None:
+    ms = 1e3
+    for c in result["cases"]:
+        size = f"{c['shapes']} shapes, {c['mesh_faces']} faces"
+        print(f"{c['concept']} ({size}), {c['samples']} samples")
+        for label, key in (
+            ("Instance.mesh()", "instance_mesh"),
+            ("Instance.sample_surface_with_normals", "grace_dsl_sample_surface"),
+            ("trimesh.sample.sample_surface (built mesh)", "trimesh_sample_surface_on_built_mesh"),
+        ):
+            t = c[key]
+            print(f"  {label:<44}{t['median_s'] * ms:>9.2f} ms (min {t['min_s'] * ms:.2f})")
+        print(f"  ratio grace_dsl / trimesh sampling: {c['ratio_median_grace_over_trimesh']:.1f}x")
+        for who in ("grace_dsl", "trimesh"):
+            q = c[f"quality_{who}"]
+            print(
+                f"  {who:<10} max |sdf| {q['max_abs_sdf_m']:.1e} m,"
+                f" mean {q['mean_abs_sdf_m']:.1e} m, hidden {100 * q['hidden_share']:.1f} %"
+            )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", choices=("all", "sdf", "sampling"), default="all")
+    parser.add_argument("--concepts", nargs="+", default=list(CONCEPTS))
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    result: dict[str, Any] = json.loads(RESULT.read_text()) if RESULT.exists() else {}
+    if "sdf" not in result and "rows" in result:  # the layout before the sampling half
+        result = {"sdf": {k: result[k] for k in result if k not in ("command", "machine")}}
+    result.update(
+        {
+            "command": ".venv/bin/python bench/bench_geometry.py",
+            "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
+            "python": platform.python_version(),
+            "trimesh": trimesh.__version__,
+        }
+    )
+    if args.part in ("all", "sdf"):
+        result["sdf"] = run_sdf()
+        _print_sdf(result["sdf"])
+    if args.part in ("all", "sampling"):
+        result["sampling"] = run_sampling(tuple(args.concepts), args.repeats)
+        _print_sampling(result["sampling"])
+    result["loadavg"] = os.getloadavg()
+    RESULT.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {RESULT}")
 
 
 if __name__ == "__main__":
