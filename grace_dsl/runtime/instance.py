@@ -82,7 +82,7 @@ class Instance:
     def create(
         concept: Concept, pose: Any, joints: Mapping[str, float], params: Mapping[str, Any]
     ) -> Instance:
-        p = concept.pack(**params)
+        p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing kwargs
         holds = concept.function("requires")(p)[1].ravel().tolist()
         if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
             check_requirements(np.array(holds), list(concept.requirement_messages), concept.name)
@@ -171,7 +171,7 @@ class Instance:
     def _free_box(self, name: str) -> tuple[np.ndarray, ...]:
         if name not in self._ranges:
             outputs = self.concept.function("grasp_range", name)(self.p)
-            self._ranges[name] = tuple(x.reshape(-1) for x in outputs)
+            self._ranges[name] = tuple([x.reshape(-1) for x in outputs])
         return self._ranges[name]
 
     def _free_vector(self, name: str, free: Mapping[str, float]) -> np.ndarray:

@@ -20,6 +20,7 @@ from grace_dsl.compiler.build import BuildResult, Progress, Unit, build, load_un
 from grace_dsl.lang.diagnostics import render_all
 from grace_dsl.runtime.concept import ParamPacker, ParamSpec, suggest
 from grace_dsl.runtime.errors import CompileError, UnknownNameError
+from grace_dsl.runtime.instance import Instance
 
 
 class _UnitFunctions:
@@ -89,8 +90,6 @@ class Concept:
         self, pose: Any = None, joints: Mapping[str, float] | None = None, **params: Any
     ) -> Any:
         """An instance at ``pose`` (4x4, world from concept) with joint values and parameters."""
-        from grace_dsl.runtime.instance import Instance
-
         return Instance.create(self, pose, joints or {}, params)
 
 
