@@ -10,7 +10,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grace_dsl.render.camera import AZIMUTH, ELEVATION, MARGIN, NEAR, View, frame_points
+from grace_dsl.render.camera import (
+    AZIMUTH,
+    ELEVATION,
+    MARGIN,
+    MIN_DISTANCE,
+    NEAR,
+    View,
+    frame_points,
+)
 from tests.render.conftest import random_pose
 
 
@@ -39,7 +47,7 @@ def test_every_point_fits_tightly(seed: int, n: int, spread: float, aspect: floa
     ndc = _ndc(view, pts, aspect)
     assert np.abs(ndc).max() <= 1 / MARGIN + 1e-9  # inside, with the margin
     nearest = float(((np.array(view.eye) - pts) @ view.basis()[2]).min())
-    clearance = NEAR * float(np.linalg.norm(np.ptp(pts, axis=0)))
+    clearance = max(NEAR * float(np.linalg.norm(np.ptp(pts, axis=0))), MIN_DISTANCE)
     assert nearest >= clearance - 1e-9  # the camera stands outside the scene
     if n > 1 and nearest > clearance + 1e-9:  # not pushed back by the clearance: a tight fit
         k = int(np.argmax(np.abs(ndc).max(axis=0)))  # the axis that limits the framing...
