@@ -84,16 +84,6 @@ def _check_drawn(img: np.ndarray) -> None:
 @needs_chromium
 def test_chromium_draws_the_page(scene, tmp_path) -> None:
     page = write_html(scene, tmp_path / "box.html")
-    dom = subprocess.run(
-        [str(chromium()), "--headless", "--no-sandbox", "--dump-dom", page.resolve().as_uri()],
-        check=True,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    ).stdout
-    mode = re.search(r'data-renderer="(\w+)"', dom)
-    assert mode is not None, "the viewer script did not run"
-    assert mode.group(1) in ("webgl", "2d")
     _check_drawn(_screenshot(page, tmp_path / "shot.png"))
 
 
@@ -158,4 +148,7 @@ def test_orbit_zoom_and_reset_in_chromium(scene, tmp_path, fragment) -> None:
     body = re.search(r"<body[^>]*>", dom)
     assert body is not None
     assert "data-error" not in body.group(0), body.group(0)
+    # the script ran: with WebGL where the browser has it (SwiftShader here), 2D for #2d
+    mode = re.search(r'data-renderer="(\w+)"', body.group(0))
+    assert mode is not None and mode.group(1) in (("2d",) if fragment else ("webgl", "2d"))
     assert 'data-moved="true"' in body.group(0) and 'data-reset="true"' in body.group(0)
