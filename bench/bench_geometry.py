@@ -28,11 +28,17 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import trimesh
+# One BLAS thread for everything (grace_dsl and trimesh alike): the (N, 3) @ (3, 3) point
+# transforms gain nothing from threads, and on a shared 2-core machine OpenBLAS's spinning
+# threads made them up to 20x slower and erratic. Set before numpy is imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-import grace_dsl as eac
-from grace_dsl.geometry import PRIMITIVES, primitive_mesh, primitive_sdf
+import numpy as np  # noqa: E402
+import trimesh  # noqa: E402
+
+import grace_dsl as eac  # noqa: E402
+from grace_dsl.geometry import PRIMITIVES, primitive_mesh, primitive_sdf  # noqa: E402
 
 N_POINTS = 100_000
 N_SUBSET = 1_000
@@ -268,9 +274,8 @@ def _print_sdf(result: dict[str, Any]) -> None:
     print(f"max | |sdf| - mesh distance |: {result['max_abs_distance_difference_to_mesh_m']:.2e} m")
     print("one primitive at its defaults, 100k points:")
     for r in result["per_primitive"]:
-        print(
-            f"  {r['primitive']:<16}{r['seconds'] * 1e3:>9.2f} ms{r['ns_per_point']:>9.1f} ns/point"
-        )
+        ms = r["median_s"] * 1e3
+        print(f"  {r['primitive']:<16}{ms:>9.2f} ms{r['ns_per_point']:>9.1f} ns/point (median)")
 
 
 def _print_sampling(result: dict[str, Any]) -> None:
@@ -309,6 +314,8 @@ def main() -> None:
             "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
             "python": platform.python_version(),
             "trimesh": trimesh.__version__,
+            "numpy": np.__version__,
+            "openblas_num_threads": os.environ["OPENBLAS_NUM_THREADS"],
         }
     )
     if args.part in ("all", "sdf"):
