@@ -9,6 +9,7 @@ installed: OSMesa (Debian's ``libosmesa6``, pure software) or EGL (``libegl1``).
 from __future__ import annotations
 
 import ctypes.util
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -49,13 +50,21 @@ def import_mujoco() -> Any:
             os.environ["MUJOCO_GL"] = backend
             if backend == "osmesa":
                 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
+    if importlib.util.find_spec("mujoco") is None:
+        raise RenderError("PNG pictures need MuJoCo: pip install 'grace-dsl[sim]'")
     try:
         import mujoco
-    except ImportError as exc:
-        raise RenderError(
-            f"PNG pictures need MuJoCo ({exc}): pip install 'grace-dsl[sim]'"
-        ) from None
+    except Exception as exc:  # MuJoCo loads its GL backend on import; each fails its own way
+        raise RenderError(_no_gl(exc)) from None
     return mujoco
+
+
+def _no_gl(exc: Exception) -> str:
+    backend = os.environ.get("MUJOCO_GL", "default")
+    return (
+        f"no OpenGL context for offscreen rendering (MUJOCO_GL={backend}: {exc}); install "
+        "libosmesa6 and set MUJOCO_GL=osmesa, or libegl1 and set MUJOCO_GL=egl"
+    )
 
 
 def render_image(
@@ -75,11 +84,7 @@ def render_image(
     try:
         renderer = mujoco.Renderer(mj_model, height, width)
     except Exception as exc:  # each GL backend fails its own way; all mean "no context here"
-        backend = os.environ.get("MUJOCO_GL", "default")
-        raise RenderError(
-            f"no OpenGL context for offscreen rendering (MUJOCO_GL={backend}: {exc}); install "
-            "libosmesa6 and set MUJOCO_GL=osmesa, or libegl1 and set MUJOCO_GL=egl"
-        ) from None
+        raise RenderError(_no_gl(exc)) from None
     with renderer:
         renderer.update_scene(data, camera=CAMERA)
         _no_decoration_shadows(mujoco, mj_model, renderer.scene)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -92,3 +95,23 @@ def test_gallery_draws_small_pictures(tmp_path, capsys) -> None:
 def test_gallery_unknown_name(tmp_path, capsys) -> None:
     assert main(["gallery", str(TOYBOX), "-o", str(tmp_path), "--only", "ToyBx"]) == 1
     assert "did you mean 'ToyBox'" in capsys.readouterr().err
+
+
+def test_show_png_without_a_gl_backend_is_one_message(tmp_path) -> None:
+    """A fresh process whose MUJOCO_GL names no backend: exit 1 and what to install."""
+    env = {**os.environ, "MUJOCO_GL": "none-such"}
+    png = tmp_path / "x.png"
+    cmd = [
+        sys.executable,
+        "-m",
+        "grace_dsl.cli.eacc",
+        "show",
+        "Pull",
+        str(TOYBOX),
+        "--png",
+        str(png),
+    ]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1 and not png.exists()
+    assert "MUJOCO_GL=none-such" in done.stderr and "libosmesa6" in done.stderr
+    assert "Traceback" not in done.stderr
