@@ -464,9 +464,11 @@ class _Run:
                 fitting.append((s, width))
         steps = np.linspace(-0.5, 0.5, 41)
         segments = np.concatenate(
-            [s.pose[:3, 3] + (max(w, 0.0) * steps)[:, None] * s.pose[:3, 1]
-             for s, w in zip(samples, widths)]
-        )  # fmt: skip
+            [
+                s.pose[:3, 3] + np.outer(max(w, 0.0) * steps, s.pose[:3, 1])
+                for s, w in zip(samples, widths)
+            ]
+        )
         gaps = geo.sdf(segments, held).reshape(len(samples), -1).min(axis=1)
         for s, gap in zip(samples, gaps):
             message = (
