@@ -115,7 +115,7 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
         add(
             fn_key("shape", shape.name),
             [("p", p), ("q", q)],
-            [("T", _mat(shape.pose)), ("args", _vec(args))],
+            [("T", _mat(shape.pose)), ("args", _vec(args)), ("at", _mat(shape.at))],
         )
     return Compiled(low, fns)
 

@@ -96,6 +96,7 @@ class ShapeInfo:
     args: dict[str, Any]  # primitive parameter -> backend value (SI)
     operands: tuple[str, ...]  # for set operations: qualified shape names
     pose: Any  # 4x4 in the concept frame
+    at: Any = None  # 4x4 placement in its declaring frame (what its `at` says; None: identity)
 
 
 @dataclass(frozen=True)
@@ -306,16 +307,19 @@ class _Instance:
     def _shape(self, s: ast.Shape, prefix: str, link: str, link_pose: Any, ev: Evaluator) -> None:
         v = s.value
         assert isinstance(v, ast.Call)
-        pose = link_pose if s.at is None else se3.matmul(link_pose, _as_pose(ev(s.at)))
+        local = se3.identity(4) if s.at is None else _as_pose(ev(s.at))
+        pose = link_pose if s.at is None else se3.matmul(link_pose, local)
         if v.func in ("union", "difference"):
             operands = tuple(prefix + a.value.id for a in v.args if isinstance(a.value, ast.Name))
-            self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose))
+            self.out.shapes.append(
+                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local)
+            )
             return
         prim = self.checked.concepts[v.func]
         args = dict(prim.defaults)
         args.update({a.name: ev(a.value) for a in v.args if a.name is not None})
         args = {k: _as_backend(self.b, val) for k, val in args.items()}
-        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose))
+        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local))
 
     def _grasp(
         self,

@@ -58,7 +58,7 @@ class ShapeTree:
         }
         self.q0 = np.zeros_like(inst.q)
         self._links: dict[str, np.ndarray] = {}
-        self._evaluated: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._evaluated: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def outermost(self, link: str | None = None) -> list[str]:
         """The shapes that are not operands of another (on ``link``, or on every link)."""
@@ -75,22 +75,28 @@ class ShapeTree:
             self._links[link] = np.asarray(fn(self.inst.p, self.q0), float)
         return self._links[link]
 
-    def evaluate(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The shape's pose (concept frame, q = 0), primitive arguments and ``at``."""
         if name not in self._evaluated:
-            pose, args = self.inst.concept.function("shape", name)(self.inst.p, self.q0)
-            self._evaluated[name] = (np.asarray(pose, float), np.asarray(args, float).reshape(-1))
+            pose, args, at = self.inst.concept.function("shape", name)(self.inst.p, self.q0)
+            self._evaluated[name] = (
+                np.asarray(pose, float),
+                np.asarray(args, float).reshape(-1),
+                np.asarray(at, float),
+            )
         return self._evaluated[name]
 
     def relative(self, name: str) -> np.ndarray:
-        """The shape's pose relative to its link (what its ``at`` says)."""
-        return np.linalg.solve(self.link_pose(self.shapes[name]["link"]), self.evaluate(name)[0])
+        """The shape's ``at``: its pose in the frame that declares it (a part's shapes in the
+        part's placed frame), which is what an operand keeps inside its composite's frame."""
+        return self.evaluate(name)[2]
 
     def placement(self, name: str) -> np.ndarray:
-        """Where an outermost shape sits: its link's pose at q = 0 times its ``at``."""
-        return self.link_pose(self.shapes[name]["link"]) @ self.relative(name)
+        """Where an outermost shape sits in the concept frame at q = 0."""
+        return self.evaluate(name)[0]
 
     def params(self, name: str) -> dict[str, Any]:
-        _, args = self.evaluate(name)
+        args = self.evaluate(name)[1]
         out: dict[str, Any] = {}
         i = 0
         for a in self.shapes[name]["args"]:

@@ -85,3 +85,27 @@ def test_bad_points_give_a_typed_error(door: eac.Instance) -> None:
         door.sdf(np.zeros((4, 2)))
     with pytest.raises(eac.ParameterError, match="finite"):
         door.sdf(np.array([[np.nan, 0, 0]]))
+
+
+def test_a_union_inside_a_part_placed_off_its_link_is_placed_once(tmp_path: Path) -> None:
+    """The part's placement applies once to a composite's operands (it was applied twice)."""
+    src = tmp_path / "u.eac"
+    src.write_text(
+        "use primitives.{Cuboid, Sphere}\n"
+        "concept Knob {\n"
+        "    shape a = Cuboid(size: (20mm, 20mm, 20mm)) at trans(0, 0, 10mm)\n"
+        "    shape b = Sphere(radius: 12mm) at trans(0, 0, 30mm)\n"
+        "    shape both = union(a, b) at rotx(90deg)\n"
+        "}\n"
+        "concept Host {\n"
+        "    shape plate = Cuboid(size: (400mm, 400mm, 10mm))\n"
+        "    part knob = Knob() at trans(150mm, -100mm, 5mm) * rotz(30deg)\n"
+        "}\n"
+    )
+    inst = eac.compile_paths([src])["Host"].instantiate()
+    place = trimesh.transformations.translation_matrix([0.15, -0.1, 0.005])
+    place = place @ trimesh.transformations.rotation_matrix(np.radians(30), [0, 0, 1])
+    place = place @ trimesh.transformations.rotation_matrix(np.radians(90), [1, 0, 0])
+    centre_a = (place @ [0, 0, 0.01, 1])[:3]
+    centre_b = (place @ [0, 0, 0.03, 1])[:3]
+    np.testing.assert_allclose(inst.sdf(np.array([centre_a, centre_b])), [-0.01, -0.012], atol=1e-9)
