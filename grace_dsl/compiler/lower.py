@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import PurePath
 from typing import Any
 
 from grace_dsl.compiler import se3
@@ -25,6 +26,7 @@ from grace_dsl.compiler.evaluate import Evaluator
 from grace_dsl.compiler.resolve import BASE_LINK
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
+from grace_dsl.lang.formatter import format_expr
 
 MakeSymbol = Callable[[str, str], Any]  # (kind "p" | "q" | "g", qualified name)
 
@@ -105,6 +107,8 @@ class RequireInfo:
     holds: Any  # 1 when the condition is true, else 0: the exact test, strict `<` included
     message: str
     source: str
+    condition: str = ""  # the condition as the formatter writes it
+    reads: tuple[str, ...] = ()  # qualified names the condition reads (some are parameters)
 
 
 @dataclass
@@ -386,6 +390,8 @@ class _Instance:
                 self.b.as_number(ev(r.cond)),
                 where + (r.message or ""),
                 _brief(r),
+                format_expr(r.cond),
+                tuple(dict.fromkeys(prefix + n for n in ast.dotted_names_in(r.cond))),
             )
         )
 
@@ -404,7 +410,7 @@ def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:
 
 def _brief(r: ast.Require) -> str:
     s = r.cond.span
-    return f"line {s.line}" if s.line else ""
+    return f"{PurePath(s.file).name}:{s.line}" if s.line else ""
 
 
 def _unit(b: Backend, v: tuple[Any, ...]) -> tuple[Any, ...]:

@@ -159,6 +159,7 @@ def concept_entry(
     offsets = np.cumsum([0] + [p.size for p in low.params]).tolist()
     operand_of = {o: s.name for s in low.shapes for o in s.operands}
     moving = [j for j in low.joints if j.kind != "fixed"]
+    param_names = {p.name for p in low.params}
     return {
         "name": decl.name,
         "kind": decl.kind,
@@ -221,6 +222,14 @@ def concept_entry(
             for s in low.shapes
         ],
         "parts": dict(low.parts),
-        "requires": [{"message": r.message, "where": r.source} for r in low.requires],
+        "requires": [
+            {
+                "message": r.message,
+                "where": r.source,
+                "condition": r.condition,
+                "params": [n for n in r.reads if n in param_names],
+            }
+            for r in low.requires
+        ],
         "functions": function_names,
     }

@@ -304,15 +304,33 @@ def names_in(e: Expr) -> Iterator[Name]:
         node = stack.pop()
         if isinstance(node, Name):
             yield node
-        elif isinstance(node, Unary):
-            stack.append(node.operand)
-        elif isinstance(node, Binary):
-            stack += [node.left, node.right]
-        elif isinstance(node, Call):
-            stack += [a.value for a in node.args]
-        elif isinstance(node, Vector):
-            stack += list(node.items)
-        elif isinstance(node, Member):
-            stack.append(node.obj)
-        elif isinstance(node, IfExpr):
-            stack += [node.cond, node.then, node.orelse]
+        stack += _children(node)
+
+
+def dotted_names_in(e: Expr) -> Iterator[str]:
+    """Every name an expression mentions, and every ``a.b`` read of one (``handle.length``)."""
+    stack: list[Any] = [e]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Name):
+            yield node.id
+        elif isinstance(node, Member) and isinstance(node.obj, Name):
+            yield f"{node.obj.id}.{node.field}"
+        stack += _children(node)
+
+
+def _children(node: Any) -> list[Any]:
+    """The sub-expressions of one expression node."""
+    if isinstance(node, Unary):
+        return [node.operand]
+    if isinstance(node, Binary):
+        return [node.left, node.right]
+    if isinstance(node, Call):
+        return [a.value for a in node.args]
+    if isinstance(node, Vector):
+        return list(node.items)
+    if isinstance(node, Member):
+        return [node.obj]
+    if isinstance(node, IfExpr):
+        return [node.cond, node.then, node.orelse]
+    return []

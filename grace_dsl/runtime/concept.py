@@ -7,7 +7,7 @@ The schema comes from the manifest; evaluation goes through the fastest evaluato
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -70,11 +70,14 @@ class ParamSpec:
             if not isinstance(value, (bool, np.bool_)):
                 raise ParameterError(f"{self.name} is a bool, not {value!r}")
             return np.array([float(value)])
+        if _has_bool(value):
+            raise ParameterError(f"{self.name} is a {self.type}, not a bool: got {value!r}")
         try:
             arr = np.asarray(value, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise ParameterError(
-                f"{self.name} must be a number{'s' if self.size > 1 else ''}, not {value!r}"
+                f"{self.name} must be {'a number' if self.size == 1 else f'{self.size} numbers'}"
+                f" ({self.type}), not {value!r}"
             ) from None
         if arr.size != self.size:
             raise ParameterError(
@@ -108,6 +111,15 @@ class ParamSpec:
 
 
 _SI_UNITS = {"length": "metres", "angle": "radians"}
+
+
+def _has_bool(value: Any) -> bool:
+    """True for a bool, or a tuple or list holding one (numpy would read them as 0 and 1)."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == np.bool_
+    return isinstance(value, (tuple, list)) and any(isinstance(v, (bool, np.bool_)) for v in value)
 
 
 def suggest(name: str, known: Any) -> str:
@@ -203,8 +215,39 @@ def _put_fast(p: np.ndarray, slot: _Slot, value: Any) -> bool:
     return True
 
 
-def check_requirements(holds: np.ndarray, messages: list[str], concept: str) -> None:
-    """Raise if any requirement is false (``holds`` is 1 where one is true, 0 where not)."""
-    bad = [m or f"requirement {i + 1}" for i, (h, m) in enumerate(zip(holds, messages)) if h != 1]
+def check_requirements(
+    holds: Sequence[float],
+    requires: Sequence[Mapping[str, Any]],
+    specs: Sequence[ParamSpec],
+    p: np.ndarray,
+    concept: str,
+) -> None:
+    """Raise if any requirement is false (``holds`` is 1 where one is true, 0 or NaN where not),
+    naming each failed one with its condition and the values of the parameters it reads, so
+    the user sees which value to change."""
+    by_name = {s.name: s for s in specs}
+    bad = [
+        _explain(i, r, by_name, p)
+        for i, (h, r) in enumerate(zip(holds, requires, strict=True))
+        if h != 1
+    ]
     if bad:
-        raise RequirementError(f"{concept}: parameters violate: " + "; ".join(bad))
+        count = f"{len(bad)} requirement{'s' if len(bad) > 1 else ''}"
+        raise RequirementError(f"{concept}: the parameters violate {count}: " + "; ".join(bad))
+
+
+def _explain(i: int, req: Mapping[str, Any], specs: Mapping[str, ParamSpec], p: np.ndarray) -> str:
+    """``"message" (condition, line N) with a = ..., b = ...`` for one failed requirement."""
+    text = req.get("message") or f"requirement {i + 1}"
+    where = ", ".join(x for x in (req.get("condition"), req.get("where")) if x)
+    values = [_value_text(specs[n], p) for n in req.get("params", ()) if n in specs]
+    return (
+        text + (f" ({where})" if where else "") + (f" with {', '.join(values)}" if values else "")
+    )
+
+
+def _value_text(spec: ParamSpec, p: np.ndarray) -> str:
+    value = spec.decode(p[spec.offset : spec.offset + spec.size])
+    if spec.kind in ("num", "vec"):
+        return f"{spec.name} = {format_si(np.atleast_1d(np.asarray(value, float)), spec.dim)}"
+    return f"{spec.name} = {value!r}"

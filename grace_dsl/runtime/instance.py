@@ -48,6 +48,46 @@ def _pose(value: Any) -> np.ndarray:
     return m
 
 
+def _joint_number(name: str, value: Any) -> float:
+    """A joint value as a float (radians or metres); bools and text are mistakes."""
+    if type(value) in (float, int, np.float64):
+        return float(value)
+    message = f"joint {name} takes one number (SI: rad or m), not {value!r}"
+    if isinstance(value, (bool, np.bool_, str, bytes)) or np.ndim(value) != 0:
+        raise ParameterError(message)
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(message) from None
+
+
+def _count(name: str, value: Any, least: int) -> int:
+    """A whole-number argument such as ``n`` or ``steps``, at least ``least``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f"{name} must be a whole number, not {value!r}")
+    if value < least:
+        raise ParameterError(f"{name} must be at least {least}, got {value}")
+    return int(value)
+
+
+def _points(points: Any) -> np.ndarray:
+    """World points as a finite float (N, 3) array, or a ParameterError saying what is wrong."""
+    try:
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError("points must be numbers: a finite (N, 3) array") from None
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        hint = "; for one point use [point]" if pts.shape == (3,) else ""
+        raise ParameterError(f"points must be an (N, 3) array, got shape {pts.shape}{hint}")
+    bad = ~np.isfinite(pts).all(axis=1)
+    if bad.any():
+        raise ParameterError(
+            f"points must be finite: {int(bad.sum())} row(s) hold NaN or inf "
+            f"(first at row {int(np.flatnonzero(bad)[0])})"
+        )
+    return pts
+
+
 def _plainly_rigid(rows: list[list[float]]) -> bool:
     """The checks of ``_pose`` in plain floats (numpy's per-call overhead is 20x the work);
     False sends the pose through the numpy checks, which decide and explain."""
@@ -85,17 +125,24 @@ class Instance:
         p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing kwargs
         holds = concept.function("requires")(p)[1].ravel().tolist()
         if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
-            check_requirements(np.array(holds), list(concept.requirement_messages), concept.name)
+            check_requirements(holds, concept.entry["requires"], concept.params, p, concept.name)
         q = np.zeros(len(concept.moving_joints))
         if joints:
+            if not isinstance(joints, Mapping):
+                raise ParameterError(
+                    f"joints must be a mapping {{name: value}}, not {type(joints).__name__}"
+                )
             lo, hi = (x.ravel().tolist() for x in concept.function("joint_limits")(p))
             for name, value in joints.items():
                 if name not in concept.moving_joints:
                     raise UnknownNameError(
                         f"{concept.name} has no moving joint {name!r}"
                         + suggest(name, concept.moving_joints)
+                        if concept.moving_joints
+                        else f"{concept.name} has no moving joints (asked for {name!r})"
                     )
                 i = concept.moving_joints.index(name)
+                value = _joint_number(name, value)
                 if not math.isfinite(value) or not lo[i] - 1e-12 <= value <= hi[i] + 1e-12:
                     raise ParameterError(
                         f"joint {name} = {value!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
@@ -139,10 +186,7 @@ class Instance:
         """(N,) signed distances of world points to the instance, negative inside."""
         from grace_dsl.runtime.shapes import instance_sdf
 
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
-            raise ParameterError(f"points must be a finite (N, 3) array, got shape {pts.shape}")
-        return instance_sdf(self, pts)
+        return instance_sdf(self, _points(points))
 
     def sample_surface(self, n: int, seed: int = 0) -> np.ndarray:
         """(n, 3) world points spread by area over the outer surface (deterministic by seed)."""
@@ -151,9 +195,7 @@ class Instance:
     def sample_surface_with_normals(self, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
         from grace_dsl.runtime.shapes import instance_samples
 
-        if n < 0:
-            raise ParameterError(f"n must be non-negative, got {n}")
-        return instance_samples(self, n, seed)
+        return instance_samples(self, _count("n", n, 0), _count("seed", seed, 0))
 
     # -- grasps
     def _grasp_entry(self, name: str) -> dict[str, Any]:
@@ -211,8 +253,8 @@ class Instance:
     def grasps(self, name: str, n: int = 16, reference: Any = None) -> np.ndarray:
         """``n`` poses spread evenly over the free-parameter box (deterministic), (n, 4, 4);
         symmetric grasps are spun to ``reference`` as in :meth:`grasp`."""
-        if n < 1:
-            raise ParameterError(f"n must be positive, got {n}")
+        if type(n) is not int or n < 1:
+            n = _count("n", n, 1)
         entry = self._grasp_entry(name)
         lo, hi, _ = self._free_box(name)
         samples = _spread_box(lo, hi, n)
@@ -280,10 +322,18 @@ class Instance:
         joint = entry["joint"]
         if joint is None:
             raise ParameterError(f"action {action} moves no joint; it has a fixed direction")
+        steps = _count("steps", steps, 2)
         i = self.concept.moving_joints.index(joint)
         lo, hi = self.joint_limits()[joint]
+        to = _joint_number(joint, to)
         if not lo - 1e-12 <= to <= hi + 1e-12:
             raise ParameterError(f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}]")
+        sense = 1.0 if entry["sense"] == "opening" else -1.0
+        if sense * (to - self.q[i]) < 0:
+            raise ParameterError(
+                f"{action} moves {joint} {'up' if sense > 0 else 'down'} from {self.q[i]:g}, "
+                f"so it cannot end at {to:g}; use the action of the other sense"
+            )
         child = self.concept.joints[joint]["child"]
         link = self.concept.function("link", child)
         start = self.pose @ link(self.p, self.q)

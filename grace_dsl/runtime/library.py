@@ -54,7 +54,6 @@ class Concept:
         self.parts: dict[str, str] = dict(entry["parts"])
         self._packer = ParamPacker.of(self.params)
         self._evaluators: dict[str, Any] = {}  # function key -> evaluator, filled on first use
-        self.requirement_messages: tuple[str, ...] = tuple(r["message"] for r in entry["requires"])
 
     def __repr__(self) -> str:
         return f"<Concept {self.name}: {len(self.params)} params, {len(self.grasps)} grasps>"

@@ -573,7 +573,9 @@ class _Run:
         q0 = float(inst.q[i])
         if not math.isfinite(hi - lo):
             lo, hi = q0 - math.pi, q0 + math.pi
-        to = float(self.rng.uniform(lo, hi))
+        # the joint moves the way the action drives it: up from q0 to open, down to close
+        opening = entry["sense"] == "opening"
+        to = float(self.rng.uniform(q0, hi) if opening else self.rng.uniform(lo, q0))
         path = inst.follow(action, grasp=s.pose, to=to, steps=FOLLOW_STEPS)
         link = self.concept.function("link", self.concept.grasps[s.grasp]["link"])
         qs = np.tile(inst.q, (FOLLOW_STEPS, 1))

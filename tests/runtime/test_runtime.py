@@ -134,6 +134,8 @@ def test_handle_part_matches_the_handle_concept(lib) -> None:  # type: ignore[no
         ({"raidan": 1.0}, eac.UnknownNameError, "did you mean 'radian'"),
         ({"r_in": (0.01, 0.02)}, eac.ParameterError, "takes 1 value"),
         ({"pose": np.zeros((4, 4))}, eac.ParameterError, "rigid transform"),
+        ({"radian": True}, eac.ParameterError, "not a bool"),
+        ({"joints": {"hinge": 0.1}}, eac.UnknownNameError, "no moving joints"),
     ],
 )
 def test_bad_input_gives_typed_errors(lib, kwargs, error, text) -> None:  # type: ignore[no-untyped-def]
@@ -153,6 +155,62 @@ def test_bad_queries_give_typed_errors(lib) -> None:  # type: ignore[no-untyped-
         lib["SunkenDoor"].instantiate(hinge_side="top")
     with pytest.raises(eac.UnknownNameError):
         lib["Nope"]
+
+
+def test_requirement_errors_say_which_values_break_what(lib) -> None:  # type: ignore[no-untyped-def]
+    """The message names the requirement, its condition and file:line, and the values it reads."""
+    with pytest.raises(eac.RequirementError) as err:
+        lib["CurveHandle"].instantiate(r_in=0.047)
+    text = str(err.value)
+    assert "the bar needs material (r_out - r_in >= 2mm, handles.eac:" in text
+    assert "r_in = 47mm" in text and "r_out = 48mm" in text
+    assert "1 requirement:" in text
+
+
+@pytest.mark.parametrize(
+    "joints, text",
+    [
+        ([0.3], "mapping"),
+        ({"hinge": "wide"}, "takes one number"),
+        ({"hinge": True}, "takes one number"),
+        ({"hinge": (0.1, 0.2)}, "takes one number"),
+        ({"hinge": float("nan")}, "outside its range"),
+    ],
+)
+def test_bad_joint_values_give_typed_errors(lib, joints, text) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(eac.ParameterError, match=text):
+        lib["SunkenDoor"].instantiate(joints=joints)
+
+
+def test_bad_counts_and_points_give_typed_errors(lib) -> None:  # type: ignore[no-untyped-def]
+    door = lib["SunkenDoor"].instantiate(joints={"hinge": 0.4})
+    g = door.grasp("handle.pull")
+    for call, text in [
+        (lambda: door.grasps("handle.pull", n=2.5), "whole number"),
+        (lambda: door.grasps("handle.pull", n=0), "at least 1"),
+        (lambda: door.sample_surface(-1), "at least 0"),
+        (lambda: door.sample_surface("3"), "whole number"),
+        (lambda: door.sample_surface(10, seed=0.5), "whole number"),
+        (lambda: door.follow("open", g, to=1.0, steps=1), "at least 2"),
+        (lambda: door.follow("open", g, to="far"), "takes one number"),
+        (lambda: door.sdf([0.0, 0.0, 0.0]), "for one point use"),
+        (lambda: door.sdf([["a", "b", "c"]]), "must be numbers"),
+        (lambda: door.sdf([[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]]), "row 1"),
+    ]:
+        with pytest.raises(eac.ParameterError, match=text):
+            call()
+    assert door.sdf(np.zeros((0, 3))).shape == (0,)
+    assert door.sample_surface(0).shape == (0, 3)
+
+
+def test_follow_moves_the_joint_the_way_the_action_drives_it(lib) -> None:  # type: ignore[no-untyped-def]
+    door = lib["SunkenDoor"].instantiate(joints={"hinge": 0.4})
+    g = door.grasp("handle.pull")
+    assert door.follow("close", g, to=0.1, steps=3).shape == (3, 4, 4)
+    with pytest.raises(eac.ParameterError, match="cannot end at 0.1"):
+        door.follow("open", g, to=0.1)
+    with pytest.raises(eac.ParameterError, match="cannot end at 1"):
+        door.follow("close", g, to=1.0)
 
 
 def test_strict_requirements_are_strict(tmp_path) -> None:  # type: ignore[no-untyped-def]
