@@ -4,6 +4,10 @@ Shapes that are operands of a ``union`` or ``difference`` are building blocks, n
 their own; only the outermost shapes of a link count. A composite's ``at`` moves its operands with
 it: an operand's pose relative to its link is applied in the composite's frame.
 
+An instance of a primitive concept (``Torus``, ``Cuboid``...) has no declared shapes: it *is*
+its shape, so the tree holds one, the primitive itself with the instance's parameters, on its
+one link at the concept frame.
+
 Two views of the same tree: *pieces* (solids with meshes, at q = 0 in the concept frame: a union
 becomes its operands, a difference one boolean mesh, which needs ``manifold3d``) for meshes and
 exports, and the *signed distance* (min over a union, max(a, -b) for a difference: exact outside
@@ -48,6 +52,23 @@ class Piece:
         return primitive_mesh(self.primitive, self.params, resolution=self.resolution)
 
 
+def primitive_own_shape(concept: Any) -> dict[str, Any] | None:
+    """The shape entry of a primitive concept's instance: the primitive itself, named after it,
+    on the concept's one link, its arguments the concept's parameters (in the same order as
+    the flat parameter vector); None for a concept that declares its shapes."""
+    entry = concept.entry
+    if entry.get("kind") != "primitive" or len(concept.links) != 1:
+        return None
+    return {
+        "name": concept.name,
+        "link": concept.links[0],
+        "primitive": concept.name,
+        "operands": [],
+        "operand_of": None,
+        "args": [{"name": s.name, "size": s.size} for s in concept.params],
+    }
+
+
 class ShapeTree:
     """Evaluates an instance's shapes at q = 0 and expands composites."""
 
@@ -59,6 +80,11 @@ class ShapeTree:
         self.q0 = np.zeros_like(inst.q)
         self._links: dict[str, np.ndarray] = {}
         self._evaluated: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        own = primitive_own_shape(inst.concept)
+        if own is not None and not self.shapes:
+            self.shapes[own["name"]] = own
+            eye = np.eye(4)  # the primitive sits on the concept frame; its arguments are p
+            self._evaluated[own["name"]] = (eye, np.asarray(inst.p, float).reshape(-1), eye)
 
     def outermost(self, link: str | None = None) -> list[str]:
         """The shapes that are not operands of another (on ``link``, or on every link)."""
