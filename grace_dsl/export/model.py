@@ -27,10 +27,13 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 DENSITY = 600.0  # kg/m^3, wood: a plausible default for doors, drawers and handles
+WALL = 0.018  # m, the usual board thickness: large bodies are boxes of boards, not solid blocks
 DAMPING = 0.5  # N m s/rad (or N s/m): enough to keep a free-swinging door from ringing
 FRICTION = 0.1  # N m (or N): a little static friction, as real hinges and slides have
 NOMINAL_MASS = 0.01  # kg, for links without geometry: simulators reject massless moving bodies
 KINDS = {"revolute", "prismatic", "continuous", "fixed"}
+
+Props = tuple[float, np.ndarray, np.ndarray]  # mass, centre of mass, inertia about it (SI)
 
 
 @dataclass(frozen=True)
@@ -88,7 +91,12 @@ class ExportModel:
 
 @dataclass(frozen=True)
 class ExportOptions:
+    """How the exported model is made: material (``density`` kg/m^3, ``wall`` m: each solid
+    weighs the lesser of its full volume and a shell of this thickness), joint damping and
+    friction, and mesh segments per full circle."""
+
     density: float = DENSITY
+    wall: float = WALL
     damping: float = DAMPING
     friction: float = FRICTION
     resolution: int = 32  # mesh segments per full circle
@@ -181,7 +189,7 @@ def _link(
     offset = np.linalg.solve(rest, _translation(origin))
     frame = _translation(origin)  # the exported frame in the concept frame at q = 0
     geoms = link_geoms(inst, src, frame, opts.resolution, warnings)
-    return Link(name, src, origin.copy(), offset, geoms, _inertial(geoms, opts.density))
+    return Link(name, src, origin.copy(), offset, geoms, _inertial(geoms, opts.density, opts.wall))
 
 
 def _joint(
@@ -225,27 +233,59 @@ def _joint(
     )
 
 
-def _inertial(geoms: tuple[Geom, ...], density: float) -> Inertial:
-    """Mass properties of a link's solid geoms at ``density`` (overlaps count twice: plausible,
-    not exact); a small nominal body when the link has no geometry."""
-    parts = [g.mesh_in_link() for g in geoms]
-    parts = [m for m in parts if m is not None and abs(m.volume) > 0]
-    if not parts:
+def _inertial(geoms: tuple[Geom, ...], density: float, wall: float) -> Inertial:
+    """Mass properties of a link's geoms (each the lighter of solid and shell, see
+    ``mass_properties``; overlaps count twice: plausible, not exact); a small nominal body when
+    the link has no geometry."""
+    props = [mass_properties(g.mesh_in_link(), density, wall) for g in geoms]
+    props = [p for p in props if p[0] > 0]
+    if not props:
         inertia = np.eye(3) * NOMINAL_MASS * 0.01**2  # a 1 cm-ish ball
         return Inertial(NOMINAL_MASS, np.zeros(3), inertia)
-    mass, com, inertia = _combine([_props(m, density) for m in parts])
+    mass, com, inertia = _combine(props)
     return Inertial(mass, com, inertia)
 
 
-def _props(mesh: trimesh.Trimesh, density: float) -> tuple[float, np.ndarray, np.ndarray]:
+def mass_properties(mesh: trimesh.Trimesh, density: float, wall: float) -> Props:
+    """A solid's mass properties: a full body (``density`` x volume) or, if lighter, a
+    thin-walled shell (``density`` x ``wall`` x area), so a cabinet or a refrigerator weighs
+    what its boards would, while a handle or a knob stays solid."""
+    volume = abs(float(mesh.volume)) if len(mesh.faces) else 0.0
+    if volume <= 0 or density * wall * float(mesh.area) < density * volume:
+        return shell_properties(mesh, density * wall)
+    return solid_properties(mesh, density)
+
+
+def solid_properties(mesh: trimesh.Trimesh, density: float) -> Props:
     m = mesh.copy()
+    if m.volume < 0:
+        m.invert()  # inward faces: trimesh would report a negative mass
     m.density = density
     return float(m.mass), np.asarray(m.center_mass), np.asarray(m.moment_inertia)
 
 
-def _combine(
-    props: list[tuple[float, np.ndarray, np.ndarray]],
-) -> tuple[float, np.ndarray, np.ndarray]:
+def shell_properties(mesh: trimesh.Trimesh, areal_density: float) -> Props:
+    """Mass properties of the mesh's surface at ``areal_density`` (kg/m^2), exact over its
+    triangles: a triangle of area A and vertices v_i has the second moment
+    ``A/12 (sum v_i v_i^T + (sum v_i)(sum v_i)^T)`` and its first moment at its centroid."""
+    tri = np.asarray(mesh.triangles, dtype=float)  # (F, 3, 3)
+    if not len(tri):
+        return 0.0, np.zeros(3), np.zeros((3, 3))
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) / 2
+    total = float(area.sum())
+    if total <= 0:
+        return 0.0, np.zeros(3), np.zeros((3, 3))
+    s = tri.sum(axis=1)  # (F, 3): sum of each triangle's vertices
+    second = np.einsum("f,fij->ij", area / 12, np.einsum("fvi,fvj->fij", tri, tri))
+    second += np.einsum("f,fi,fj->ij", area / 12, s, s)
+    mass = areal_density * total
+    com = (area @ s) / 3 / total
+    about_origin = areal_density * (np.trace(second) * np.eye(3) - second)
+    inertia = about_origin - mass * (com @ com * np.eye(3) - np.outer(com, com))
+    return mass, com, (inertia + inertia.T) / 2
+
+
+def _combine(props: list[Props]) -> Props:
     """Total mass, centre of mass and inertia about it (parallel-axis theorem)."""
     mass = sum(p[0] for p in props)
     com = sum(p[0] * p[1] for p in props) / mass
