@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
@@ -10,6 +11,24 @@ from pathlib import Path
 import numpy as np
 
 from grace_dsl.export.shapes import Geom
+from grace_dsl.runtime.errors import GraceError
+
+
+class ExportPathError(GraceError):
+    """An output path that names a directory where a file is expected."""
+
+
+def output_file(path: str | Path, suffix: str) -> Path:
+    """``path`` as the file to write; a directory (existing, or written with a trailing
+    separator) is refused, since writing "into" it would silently create a file named like it.
+    ``suffix`` (``".urdf"``) only shapes the suggestion in the message."""
+    text = os.fspath(path)
+    target = Path(text)
+    if text.endswith(("/", os.sep)) or target.is_dir():
+        raise ExportPathError(
+            f"{text} is a directory: give a file name, e.g. {target / ('model' + suffix)}"
+        )
+    return target
 
 
 def num(v: float) -> str:

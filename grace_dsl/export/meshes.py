@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import trimesh
 
+from grace_dsl.export.common import output_file
 from grace_dsl.runtime.errors import GraceError
 
 if TYPE_CHECKING:
@@ -63,7 +64,7 @@ def write_instance_mesh(
 ) -> trimesh.Trimesh:
     """Write the instance (or one link) to ``path`` as ``fmt`` (default: the file's suffix);
     returns the mesh written, all links concatenated."""
-    target = Path(path)
+    target = output_file(path, f".{fmt or 'obj'}")
     kind = (fmt or target.suffix.lstrip(".")).lower()
     if kind not in MESH_FORMATS:
         raise MeshExportError(

@@ -19,6 +19,7 @@ from grace_dsl.export.common import (
     geom_file_stem,
     mesh_dir_name,
     num,
+    output_file,
     quat_wxyz,
     to_text,
     vec,
@@ -44,7 +45,7 @@ def export_mjcf(
 
 def write_mjcf(model: ExportModel, path: str | Path | None = None) -> str:
     """The MJCF text of an already built model (written to ``path`` when given)."""
-    target = Path(path) if path is not None else None
+    target = output_file(path, ".xml") if path is not None else None
     writer = _Writer(model, target)
     text = to_text(writer.tree(), f"{model.name}, exported by grace_dsl")
     if target is not None:

@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from grace_dsl.export.common import mesh_dir_name, num, rpy, to_text, vec, write_mesh
+from grace_dsl.export.common import (
+    mesh_dir_name,
+    num,
+    output_file,
+    rpy,
+    to_text,
+    vec,
+    write_mesh,
+)
 from grace_dsl.export.model import ExportModel, ExportOptions, Inertial, Joint, Link, build_model
 from grace_dsl.export.shapes import Geom
 
@@ -39,7 +47,7 @@ def export_urdf(
 
 def write_urdf(model: ExportModel, path: str | Path | None = None) -> str:
     """The URDF text of an already built model (written to ``path`` when given)."""
-    target = Path(path) if path is not None else None
+    target = output_file(path, ".urdf") if path is not None else None
     relative = mesh_dir_name(target or Path("model.urdf"))
     mesh_dir = target.parent / relative if target is not None else None
     if target is None and any(g.native() is None for link in model.links for g in link.geoms):

@@ -14,7 +14,12 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from grace_dsl.export.command import ExportUsageError, add_instance_arguments, instance_from_args
+from grace_dsl.export.command import (
+    ExportUsageError,
+    add_instance_arguments,
+    count,
+    instance_from_args,
+)
 from grace_dsl.render.png import RenderError
 from grace_dsl.render.scene import Scene, describe, primitive_scene
 from grace_dsl.runtime.concept import suggest
@@ -80,7 +85,7 @@ def run_show(args: Any, library: Any) -> int:
     except (GraceError, OSError, ValueError) as exc:
         sys.stderr.write(f"eacc: {exc}\n")
         return 1
-    _report(scene, args)
+    _report(scene, len(inst.concept.links), args)
     return 0
 
 
@@ -89,7 +94,9 @@ def _subtitle(inst: Any) -> str:
     return joints or "no moving joints"
 
 
-def _report(scene: Scene, args: Any) -> None:
+def _report(scene: Scene, links: int, args: Any) -> None:
+    """One line: the concept's links (and how many have shapes, when not all do, since a
+    link without shapes draws nothing), grasp frames, forces and joint axes."""
     from grace_dsl.cli.output import print_json, print_text
 
     info = scene.summary()
@@ -98,9 +105,11 @@ def _report(scene: Scene, args: Any) -> None:
         print_json({**info, "png": args.png, "html": args.html})
         return
     frames = sum(info["grasp_frames"].values())
+    shaped = f" ({len(scene.parts)} with shapes)" if len(scene.parts) != links else ""
     print_text(
-        f"{scene.title}: {len(scene.parts)} links, {frames} grasp frames, "
-        f"{len(scene.forces)} forces, {len(scene.joints)} joint axes"
+        f"{scene.title}: {count(links, 'link')}{shaped}, {count(frames, 'grasp frame')}, "
+        f"{count(len(scene.forces), 'force')}, "
+        f"{count(len(scene.joints), 'joint axis', 'joint axes')}"
         + (f" -> {', '.join(written)}" if written else "")
     )
     for note in scene.notes:

@@ -26,25 +26,43 @@ TOL = 1e-6
 
 @pytest.fixture(scope="module")
 def concepts() -> dict[str, eac.Concept]:
-    """Every non-primitive concept of the standard library, and the test cabinet."""
+    """Every concept of the standard library (primitives too: an instance of one is the
+    primitive itself), and the test cabinet."""
     out = {}
     for lib in (eac.load_library(), eac.compile_paths([HERE / "cabinet.eac"])):
-        out.update({n: lib[n] for n in lib if lib[n].entry["kind"] != "primitive"})
+        out.update({n: lib[n] for n in lib})
     return out
 
 
 def _concept_names() -> list[str]:
-    """Every non-primitive concept of the library and of the test file (front end only)."""
+    """Every concept of the library and of the test file (front end only)."""
     prog, _, diags = front_end([stdlib_dir(), HERE / "cabinet.eac"])
     assert not diags, diags
-    return sorted(n for n, e in prog.concepts.items() if e.decl.kind != "primitive")
+    return sorted(prog.concepts)
 
 
 NAMES = _concept_names()
+PRIMITIVE_NAMES = {"Cuboid", "Cylinder", "Tube", "Ring", "RectRing", "Sphere", "Capsule"}
+PRIMITIVE_NAMES |= {"Frustum", "TaperedCuboid", "SphericalCap", "Torus", "Prism"}
 
 
 def test_every_library_concept_is_covered(concepts) -> None:  # type: ignore[no-untyped-def]
     assert set(concepts) == set(NAMES) and {"SunkenDoor", "Knob", "Cabinet"} <= set(NAMES)
+    assert set(NAMES) >= PRIMITIVE_NAMES
+
+
+@pytest.mark.parametrize("name", sorted(PRIMITIVE_NAMES))
+def test_a_primitive_exports_as_one_geom_of_its_own_volume(
+    concepts: dict[str, eac.Concept], name: str
+) -> None:
+    from grace_dsl.geometry import volume
+
+    inst = concepts[name].instantiate()
+    (link,) = build_model(inst).links
+    (geom,) = link.geoms
+    assert geom.primitive == name and dict(geom.params).keys() == inst.params.keys()
+    assert geom.mesh.volume == pytest.approx(volume(name, inst.params), rel=0.02)
+    assert link.inertial.mass > 0
 
 
 def _random_pose(rng: np.random.Generator) -> np.ndarray:
@@ -231,7 +249,7 @@ def test_cli_exports_with_params_and_joints(tmp_path, capsys) -> None:  # type: 
         (["--param", "size=a"], "size takes 3 number(s)"),
         (["--param", "rim"], "--param expects NAME=VALUE"),
         (["--joint", "hinge=2"], "outside its range"),
-        (["--params-json", "/nonexistent.json"], "cannot read parameters"),
+        (["--params-json", "/nonexistent.json"], "cannot read the instance file"),
     ],
 )
 def test_cli_bad_input_is_one_message(tmp_path, capsys, extra, message) -> None:  # type: ignore[no-untyped-def]

@@ -45,7 +45,34 @@ def test_show_writes_png_and_html(tmp_path, capsys) -> None:
 def test_show_without_outputs_reports_the_scene(capsys) -> None:
     assert main(["show", "Pull", str(TOYBOX)]) == 0
     text = capsys.readouterr().out
-    assert "Pull: 2 links, 4 grasp frames, 2 forces, 1 joint axes" in text
+    assert "Pull: 2 links, 4 grasp frames, 2 forces, 1 joint axis" in text
+
+
+def test_show_counts_links_without_shapes(capsys) -> None:
+    """SunkenDoor's base has no shapes: it is still a link, and the report says so."""
+    door = eac.load_library()["SunkenDoor"]
+    assert len(door.links) == 2
+    assert main(["show", "SunkenDoor", "--grasps", "1"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("SunkenDoor: 2 links (1 with shapes), ") and "1 joint axis" in out
+    assert main(["show", "Torus"]) == 0
+    assert "Torus: 1 link, 0 grasp frames, 0 forces, 0 joint axes" in capsys.readouterr().out
+
+
+def test_show_takes_the_pose(capsys) -> None:
+    """``--pose`` moves everything the scene shows: forces' points by the pose, directions by its
+    rotation (x, y, z and roll, pitch, yaw: Rz(yaw) Ry(pitch) Rx(roll))."""
+    assert main(["show", "Pull", str(TOYBOX), "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert (
+        main(["show", "Pull", str(TOYBOX), "--json", "--pose=0.5,-1,2,0,0,1.5707963267948966"]) == 0
+    )
+    moved = json.loads(capsys.readouterr().out)
+    turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])  # 90 deg about z
+    assert len(plain["forces"]) == len(moved["forces"]) > 0
+    for a, b in zip(plain["forces"], moved["forces"]):
+        np.testing.assert_allclose(b["at"], turn @ a["at"] + [0.5, -1, 2], atol=1e-9)
+        np.testing.assert_allclose(b["direction"], turn @ a["direction"], atol=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -56,12 +83,24 @@ def test_show_without_outputs_reports_the_scene(capsys) -> None:
         (["--joint", "hnge=0.1"], "did you mean 'hinge'"),
         (["--grasps", "-1"], "grasps must be 0 or more"),
         (["--param", "size=1,2"], "size"),
+        (["--pose", "1,2,3,4"], "--pose takes 3 numbers"),
+        (["--pose=1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,2"], "not a rigid transform"),
     ],
 )
 def test_show_bad_input_is_one_message(extra, message, capsys) -> None:
     assert main(["show", "ToyBox", str(TOYBOX), *extra]) == 1
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+@needs_gl
+def test_show_draws_a_primitive_concept(tmp_path, capsys) -> None:
+    """A primitive concept's instance is the primitive: the picture is not blank."""
+    png = tmp_path / "torus.png"
+    assert main(["show", "Torus", "--png", str(png), "--size", "160x120"]) == 0
+    pixels = np.asarray(Image.open(png).convert("RGB")).reshape(-1, 3).astype(int)
+    background = pixels[0]
+    assert np.mean(np.abs(pixels - background).sum(axis=1) > 30) > 0.02  # the ring's pixels
 
 
 def test_image_size() -> None:
