@@ -4,12 +4,18 @@ Franka Panda hand (0-80 mm)."""
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import grace_dsl as eac
+from grace_dsl.runtime.catalog import generated_library_table, library_table
+from grace_dsl.runtime.gripper import Gripper
 
 PARTS = [
+    "CurveHandle",
     "StraightHandle",
     "RingPull",
     "TBarHandle",
@@ -24,6 +30,7 @@ PARTS = [
     "ToggleSwitch",
 ]
 OBJECTS = [
+    "SunkenDoor",
     "HingedCabinet",
     "CabinetDrawer",
     "ChestOfDrawers",
@@ -92,11 +99,11 @@ def _draw(c: eac.Concept, rng: np.random.Generator) -> dict[str, object]:
     return out
 
 
-def _instances(c: eac.Concept, seed: int = 0) -> list[eac.Instance]:
-    """The defaults and the random draws that satisfy the requirements."""
+def _instances(c: eac.Concept, seed: int = 0, draws: int = DRAWS) -> list[eac.Instance]:
+    """The defaults and the random draws (``draws`` of them) that satisfy the requirements."""
     rng = np.random.default_rng(seed)
     out = [c.instantiate()]
-    for _ in range(DRAWS):
+    for _ in range(draws):
         try:
             out.append(c.instantiate(**_draw(c, rng)))
         except eac.RequirementError:
@@ -106,9 +113,12 @@ def _instances(c: eac.Concept, seed: int = 0) -> list[eac.Instance]:
 
 @pytest.mark.parametrize("name", WRITTEN)
 def test_instantiates_over_its_ranges(lib: eac.Library, name: str) -> None:
+    """At least 10% of uniform draws inside the ranges are valid instances (``eacc verify``
+    reports the same rate; SunkenDoor's, the lowest, is about 15%)."""
     c = lib[name]
-    insts = _instances(c)
-    assert len(insts) - 1 >= 3, f"only {len(insts) - 1} of {DRAWS} random draws of {name} are valid"
+    insts = _instances(c, draws=5 * DRAWS)
+    valid = len(insts) - 1
+    assert valid >= DRAWS // 2, f"only {valid} of {5 * DRAWS} random draws of {name} are valid"
     for inst in insts:
         for g in c.grasps:
             pose = inst.grasp(g)
@@ -179,3 +189,125 @@ def test_grasp_widths_fit_a_panda_hand(lib: eac.Library, name: str) -> None:
             continue  # a hook, push or press does not close the fingers on anything
         assert w is not None, f"{name}.{g} closes the fingers but has no width"
         assert 0.0 <= w <= PANDA_MAX_WIDTH, f"{name}.{g} needs {w * 1000:.1f} mm"
+
+
+def test_every_concept_is_written_here(lib: eac.Library) -> None:
+    assert sorted(_concepts(lib)) == sorted(WRITTEN)
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_every_concept_opens_and_closes(lib: eac.Library, name: str) -> None:
+    """Each concept has an action that opens and one that closes. An action along a joint has
+    the sense the joint gives it; one toward a fixed direction takes its verb's default sense
+    (pull, lift, slide, turn, open: opening; push, lower, press, close: closing), so a handle's
+    `pull_out` opens and its `push_in` closes."""
+    senses = {a["sense"] for a in lib[name].actions.values()}
+    assert senses == {"opening", "closing"}, f"{name} has only {senses} actions"
+
+
+def _mid_joints(inst: eac.Instance) -> dict[str, float]:
+    out = {}
+    for joint, (lo, hi) in inst.joint_limits().items():
+        out[joint] = (lo + hi) / 2 if np.isfinite(hi - lo) else 0.3
+    return out
+
+
+@pytest.mark.parametrize("name", WRITTEN)
+def test_hooks_and_pushes_can_apply_their_actions(lib: eac.Library, name: str) -> None:
+    """Every hook or push an action names can apply that action's force, for a Panda, at the
+    defaults with the joints half open: a push along its fingers, a hook onto the wall on its
+    +x side (docs/language.md, grasp modes)."""
+    c = lib[name]
+    inst = c.instantiate()
+    inst = c.instantiate(joints=_mid_joints(inst))
+    for action, entry in c.actions.items():
+        modes = {g: c.grasps[g].get("mode", "pinch") for g in entry["using"]}
+        if not {"hook", "push"} & set(modes.values()):
+            continue
+        for option in inst.rank(action, samples=8):
+            if modes[option.grasp] in ("hook", "push"):
+                assert option.feasible, (name, action, option.grasp, option.reasons)
+
+
+PULLED_BY_HOOK = {  # concept -> (opening action, hook it lists after the pinch)
+    "StraightHandle": ("pull_out", "hook"),
+    "TBarHandle": ("pull_out", "hook"),
+    "HingedCabinet": ("open", "handle.hook"),
+    "CabinetDrawer": ("open", "handle.hook"),
+    "ChestOfDrawers": ("open2", "handle2.hook"),
+    "Microwave": ("open", "handle.hook"),
+    "Oven": ("open", "handle.hook"),
+    "Dishwasher": ("open", "handle.hook"),
+    "Refrigerator": ("open", "handle.hook"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PULLED_BY_HOOK))
+def test_a_hand_that_cannot_close_opens_by_hooking(lib: eac.Library, name: str) -> None:
+    action, hook = PULLED_BY_HOOK[name]
+    using = lib[name].actions[action]["using"]
+    assert using.index(hook) > 0 and lib[name].grasps[using[0]].get("mode", "pinch") == "pinch"
+    no_close = dataclasses.replace(Gripper.panda(), can_close=False)
+    best = lib[name].instantiate().rank(action, no_close, samples=8)[0]
+    assert (best.grasp, best.feasible) == (hook, True)
+
+
+CLOSED_BY_PUSH = {  # hinged doors and lids, and drawers: their closing action lists a push
+    "SunkenDoor": "close",
+    "HingedCabinet": "close",
+    "CabinetDrawer": "close",
+    "ChestOfDrawers": "close3",
+    "Safe": "close",
+    "RoomDoor": "close",
+    "Microwave": "close",
+    "Oven": "close",
+    "Dishwasher": "close",
+    "Refrigerator": "close",
+    "WashingMachine": "close",
+    "Laptop": "close",
+    "CasementWindow": "close",
+    "LidBox": "close",
+    "TrashCan": "close",
+    "Toilet": "close_lid",
+}
+
+
+@pytest.mark.parametrize("name", sorted(CLOSED_BY_PUSH))
+def test_doors_lids_and_drawers_close_by_pushing(lib: eac.Library, name: str) -> None:
+    c = lib[name]
+    action = CLOSED_BY_PUSH[name]
+    assert c.actions[action]["sense"] == "closing"
+    no_close = dataclasses.replace(Gripper.panda(), can_close=False)
+    inst = c.instantiate(joints=_mid_joints(c.instantiate()))
+    best = inst.rank(action, no_close, samples=8)[0]
+    assert best.feasible and c.grasps[best.grasp]["mode"] == "push", (name, best)
+
+
+def test_docs_library_table_is_the_generated_one(lib: eac.Library) -> None:
+    """docs/library.md holds exactly ``library_table`` of the standard library between its
+    markers, so the table lists every concept with its current grasps and actions."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "library.md").read_text("utf-8")
+    table = library_table(lib)
+    assert generated_library_table(text) == table, (
+        "docs/library.md is stale: run `python -m grace_dsl.runtime.catalog docs/library.md`"
+    )
+    for name in WRITTEN:  # a row per concept, with its picture and every grasp and action
+        (row,) = [r for r in table.splitlines() if r.startswith(f"| {name} |")]
+        assert f'src="gallery/{name}.png"' in row
+        for g, entry in lib[name].grasps.items():
+            assert f"`{g}` ({entry.get('mode', 'pinch')}" in row
+        for a in lib[name].actions:
+            assert f"`{a}` (" in row
+
+
+def test_library_table_shows_modes_senses_and_units(lib: eac.Library) -> None:
+    rows = {r.split(" | ")[0][2:]: r for r in library_table(lib).splitlines() if r.startswith("| ")}
+    assert "`hook` (hook)" in rows["StraightHandle"] and "`pull` (pinch)" in rows["StraightHandle"]
+    assert "`pull_out` (pull toward, opening; `pull`, `hook`)" in rows["StraightHandle"]
+    assert "`push_in` (push toward, closing; `push`)" in rows["StraightHandle"]
+    assert "`close` (push along `hinge`, closing; `handle.pull`, `push_edge`)" in rows["Microwave"]
+    assert "`pinch` (pinch, symmetric)" in rows["RoundKnob"]
+    assert "`size` (vec3, m)" in rows["Safe"] and "`handle.hand` (right/left)" in rows["Safe"]
+    assert "`handle.throw` (rad)" in rows["Safe"]
+    assert "cabinet (`cabinets.eac`)" in rows["Safe"]
+    assert "Cuboid" not in rows  # primitives are documented in primitives.md

@@ -588,3 +588,116 @@ def _action_md(a: Mapping[str, Any]) -> list[str]:
         else:
             out.append(f"  - force with every joint at 0: `F = {force['rest_text']}`")
     return out
+
+
+# ---- the library table of docs/library.md ---------------------------------------------------
+
+# Source file -> category, in the order of the tables; part concepts (mounted on objects by
+# `part`) first. Files not listed are object concepts named after the file.
+PART_FILES = {
+    "handles.eac": "handle",
+    "knobs.eac": "knob / dial",
+    "switches.eac": "button / switch",
+}
+OBJECT_FILES = {
+    "cabinets.eac": "cabinet",
+    "doors.eac": "door",
+    "appliances.eac": "appliance",
+    "windows.eac": "window",
+    "containers.eac": "container",
+    "fixtures.eac": "fixture",
+}
+LIBRARY_TABLE_BEGIN = (
+    "<!-- Generated from the library by grace_dsl.runtime.catalog.library_table: after changing\n"
+    "a concept, run `python -m grace_dsl.runtime.catalog docs/library.md`. -->"
+)
+LIBRARY_TABLE_END = "<!-- End of the generated tables. -->"
+_HEADER = (
+    "| concept | picture | category (file) | parameters (unit) | grasps (mode) "
+    "| actions (verb, sense; grasps used) | synopsis |"
+)
+
+
+def library_table(lib: Library) -> str:
+    """The markdown tables of every concept of ``lib`` that is not a primitive: its category,
+    picture (``gallery/NAME.png``), parameters with their units, grasps with their modes, actions
+    with verb, sense and the grasps they use, and synopsis; part concepts, then object concepts,
+    in the order of ``PART_FILES`` and ``OBJECT_FILES`` (other files last, by name)."""
+    files = {**PART_FILES, **OBJECT_FILES}
+    order = list(files)
+    rows: dict[str, list[str]] = {}
+    for name in lib:
+        c = lib[name]
+        if c.entry["kind"] == "primitive":
+            continue
+        rows.setdefault(c.entry["file"], []).append(_table_row(c, files))
+    ranked = sorted(rows, key=lambda f: (order.index(f) if f in order else len(order), f))
+    parts = [r for f in ranked if f in PART_FILES for r in rows[f]]
+    objects = [r for f in ranked if f not in PART_FILES for r in rows[f]]
+    out = [f"## Part concepts ({len(parts)})", "", _HEADER, "|---" * 7 + "|", *parts]
+    out += ["", f"## Object concepts ({len(objects)})", "", _HEADER, "|---" * 7 + "|", *objects]
+    return "\n".join(out) + "\n"
+
+
+def _table_row(c: Concept, files: Mapping[str, str]) -> str:
+    file = c.entry["file"]
+    category = files.get(file, Path(file).stem.replace("_", " "))
+    picture = f'<img src="gallery/{c.name}.png" width="160" alt="{c.name}">'
+    params = ", ".join(f"`{p.name}` ({_unit(p)})" for p in c.params) or "-"
+    grasps = ", ".join(f"`{g}` ({_grasp_how(e)})" for g, e in c.grasps.items()) or "-"
+    actions = ", ".join(_action_cell(a) for a in c.actions.values()) or "-"
+    cells = [c.name, picture, f"{category} (`{file}`)", params, grasps, actions, _para(c.doc)]
+    return "| " + " | ".join(_cell(x) for x in cells) + " |"
+
+
+def _unit(p: Any) -> str:
+    if p.kind == "choice":
+        return "/".join(p.choices or ())
+    if p.kind in ("bool", "int"):
+        return p.kind
+    unit = {"length": "m", "angle": "rad"}.get(p.dim or "", "-")
+    return f"vec{p.size}, {unit}" if p.kind == "vec" else unit
+
+
+def _grasp_how(g: Mapping[str, Any]) -> str:
+    return g.get("mode", "pinch") + (", symmetric" if g.get("symmetric") else "")
+
+
+def _action_cell(a: Mapping[str, Any]) -> str:
+    where = f"along `{a['joint']}`" if a["joint"] else "toward"
+    using = "; " + ", ".join(f"`{u}`" for u in a["using"]) if a["using"] else ""
+    return f"`{a['name']}` ({a['verb']} {where}, {a['sense']}{using})"
+
+
+def update_library_doc(path: str | Path, lib: Library) -> bool:
+    """Write ``library_table(lib)`` between the markers of the markdown file ``path``; True if
+    the file changed. Raises ``ValueError`` when the markers are missing."""
+    path = Path(path)
+    text = path.read_text("utf-8")
+    start, end = text.find(LIBRARY_TABLE_BEGIN), text.find(LIBRARY_TABLE_END)
+    if start < 0 or end < start:
+        raise ValueError(f"{path}: the generated-table markers are missing")
+    head = text[: start + len(LIBRARY_TABLE_BEGIN)]
+    new = f"{head}\n\n{library_table(lib)}\n{text[end:]}"
+    if new == text:
+        return False
+    path.write_text(new, "utf-8")
+    return True
+
+
+def generated_library_table(text: str) -> str | None:
+    """The text between the markers of a markdown page (None without them)."""
+    start, end = text.find(LIBRARY_TABLE_BEGIN), text.find(LIBRARY_TABLE_END)
+    if start < 0 or end < start:
+        return None
+    return text[start + len(LIBRARY_TABLE_BEGIN) : end].strip("\n") + "\n"
+
+
+if __name__ == "__main__":  # python -m grace_dsl.runtime.catalog docs/library.md
+    import sys
+
+    from grace_dsl.runtime.library import load_library
+
+    for target in sys.argv[1:] or ["docs/library.md"]:
+        changed = update_library_doc(target, load_library())
+        print(f"{target}: {'updated' if changed else 'up to date'}")

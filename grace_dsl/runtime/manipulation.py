@@ -4,10 +4,13 @@ An action (``open``) may be performed through several manipulation functions: pi
 hook the fingers behind it, push the door's edge.  Each asks something of the hand: a pinch needs
 fingers that close and open wide enough; every function needs the hand to come in along the
 grasp's approach (+z of the grasp frame).  A push or press contact can only push roughly along
-its fingers; a hook pulls back or sideways against them but cannot push in.  ``rank`` checks
-every function of the action against a gripper's abilities over its free-parameter range and
-orders them: feasible first, then prehensile before hooking before pushing, then by how far the
-hand must tilt from its preferred approach.
+its fingers.  A hook rests the side of its closed fingers on a wall (behind a bar, inside a
+pocket); by convention that wall lies on the grasp's +x side, so a hook can only apply a force
+with a positive component along +x (pressing the fingers onto the wall, not pulling them off it)
+and never push in along its approach.  ``rank`` checks every function of the action against a
+gripper's abilities over its free-parameter range and orders them: feasible first, then
+prehensile before hooking before pushing, then by how far the hand must tilt from its preferred
+approach.
 """
 
 from __future__ import annotations
@@ -27,8 +30,11 @@ if TYPE_CHECKING:
 MODE_ORDER = {"pinch": 0, "hook": 1, "push": 2, "press": 2}
 TWIST_VERBS = ("turn", "rotate")
 # A push transmits force within this angle of the fingers' direction (+z): 60 deg, a friction
-# cone with mu ~ 1.7, generous on purpose; a hook anything outside it.
+# cone with mu ~ 1.7, generous on purpose; a hook anything outside it (towards its +x side).
 CONTACT_CONE = math.radians(60.0)
+# A hook's force needs a positive component along the grasp's +x, the side its fingers rest on:
+# more than this (cosine), so that a force along the wall (cosine 0) does not count.
+HOOK_GRIP = 1e-6
 SPIN_STEPS = 12  # spins tried for a grasp symmetric about an axis other than its approach
 
 
@@ -88,11 +94,14 @@ def _judge(
     reasons = list(_hand_reasons(inst, name, mode, gripper))
     poses, free = _poses(inst, name, samples, reference)
     tilt = _tilt(poses, gripper)
-    force_ok = np.array([_transmits(inst, action, mode, p) for p in poses])
+    why = [_contact(inst, action, mode, p) for p in poses]
+    force_ok = np.array([w is None for w in why])
     within = tilt <= gripper.approach_tolerance + 1e-9
     usable = force_ok & within
     if not force_ok.any():
-        reasons.append(f"a {mode} contact cannot apply the force of {action['name']} here")
+        reasons.append(
+            f"a {mode} contact cannot apply the force of {action['name']} here: {why[0]}"
+        )
     elif not usable.any():
         reasons.append(
             f"the hand would tilt {math.degrees(float(tilt[force_ok].min())):.0f} deg from its "
@@ -154,15 +163,24 @@ def _tilt(poses: np.ndarray, gripper: Gripper) -> np.ndarray:
     return np.arccos(np.clip(poses[:, :3, 2] @ want, -1.0, 1.0))
 
 
-def _transmits(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray) -> bool:
-    """Whether a contact of this mode can apply the action's force at this pose."""
+def _contact(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray) -> str | None:
+    """Why a contact of this mode cannot apply the action's force at this pose (None: it can)."""
     try:
         f = inst.force(action["name"], grasp=pose)
     except ParameterError:  # on the joint's axis: only a grip can turn it
-        return action["verb"] in TWIST_VERBS and mode == "pinch"
+        if action["verb"] in TWIST_VERBS and mode == "pinch":
+            return None
+        return "the grasp is on the joint's axis, where only a grip can turn it"
     along = float(f @ pose[:3, 2])
-    if mode in ("push", "press"):
-        return along >= math.cos(CONTACT_CONE)
-    if mode == "hook":  # pulls back or sideways against the curled fingers, never pushes in
-        return along <= math.cos(CONTACT_CONE)
-    return True
+    if mode in ("push", "press") and along < math.cos(CONTACT_CONE):
+        deg = math.degrees(math.acos(max(-1.0, min(1.0, along))))
+        return f"the force is {deg:.0f} deg from the fingers' approach (at most 60 deg)"
+    if mode == "hook":
+        if along > math.cos(CONTACT_CONE):
+            return "the force pushes the fingers in along their approach"
+        if float(f @ pose[:3, 0]) <= HOOK_GRIP:
+            return (
+                "the force pulls the fingers off the wall they rest on (the hook's +x side) "
+                "instead of pressing them onto it"
+            )
+    return None

@@ -10,6 +10,8 @@ import pytest
 
 import grace_dsl as eac
 from grace_dsl.runtime.gripper import Gripper
+from grace_dsl.runtime.manipulation import Option
+from grace_dsl.runtime.manipulation import _judge as judge
 from tests.conftest import write
 
 DOOR = """use primitives.{Cuboid, Capsule}
@@ -27,9 +29,14 @@ concept BarDoor {
         grasp pinch(s in [-50mm, 50mm] = 0) =
             trans(bar_x, s, bar_z) * roty(180deg) * rotz(90deg)
             width 2 * radius
-        /// Hook the closed fingers behind the bar at height s.
+        /// Hook the closed fingers behind the bar at height s, coming in from the free edge; the
+        /// wall they rest on (the bar's back) is on their +x side.
         grasp hook(s in [-50mm, 50mm] = 0) =
-            trans(bar_x, s, bar_z - radius - 5mm) * roty(180deg) * rotz(90deg)
+            trans(bar_x, s, bar_z - radius - 10mm) * roty(-90deg)
+            by hook
+        /// The same fingers laid on the bar's front (+x of the grasp points back at the door).
+        grasp hook_front(s in [-50mm, 50mm] = 0) =
+            trans(bar_x, s, bar_z + radius + 10mm) * roty(90deg)
             by hook
         /// Push the front face near the free edge.
         grasp push_edge = trans(size.x / 2 - 10mm, 0, size.z / 2) * roty(180deg) by push
@@ -37,7 +44,7 @@ concept BarDoor {
     joint hinge : revolute(base -> leaf) axis (0, 1, 0) at (-size.x / 2, 0, 0)
         range [0, 110deg] opens -
     /// Pull the door open toward the robot.
-    action open = pull along hinge using pinch, hook, push_edge
+    action open = pull along hinge using pinch, hook, push_edge, hook_front
     /// Push it shut.
     action close = push along hinge using push_edge, pinch
 }
@@ -52,7 +59,7 @@ def door(tmp_path_factory: pytest.TempPathFactory) -> eac.Concept:
 def facing_robot() -> np.ndarray:
     """The door stands 1 m in front of the robot, its front (+z) facing back at it (-x world)."""
     m = np.eye(4)
-    m[:3, :3] = np.column_stack([[0, 1, 0], [0, 0, 1], [-1, 0, 0]])
+    m[:3, :3] = np.column_stack([[0, -1, 0], [0, 0, 1], [-1, 0, 0]])  # x = y cross z
     m[:3, 3] = (1.0, 0.0, 0.8)
     return m
 
@@ -61,9 +68,10 @@ def test_a_free_hand_prefers_pinch_then_hook_and_cannot_pull_by_pushing(door: ea
     options = door.instantiate(pose=facing_robot(), joints={"hinge": 0.2}).rank(
         "open", Gripper.panda()
     )
-    assert [o.grasp for o in options] == ["pinch", "hook", "push_edge"]
-    assert [o.feasible for o in options] == [True, True, False]
-    assert "push contact cannot apply the force of open" in options[2].reasons[0]
+    assert [o.grasp for o in options] == ["pinch", "hook", "hook_front", "push_edge"]
+    assert [o.feasible for o in options] == [True, True, False, False]
+    assert "push contact cannot apply the force of open" in options[3].reasons[0]
+    assert "deg from the fingers' approach" in options[3].reasons[0]
     assert options[0].tilt == 0.0 and options[0].pose is not None
 
 
@@ -112,3 +120,49 @@ def test_unknown_actions_and_bad_samples_are_errors(door: eac.Concept) -> None:
         inst.rank("opn")
     with pytest.raises(eac.ParameterError, match="samples"):
         inst.rank("open", samples=0)
+
+
+def test_a_hook_pulls_only_towards_the_wall_on_its_plus_x_side(door: eac.Concept) -> None:
+    """The force must press the fingers onto the wall they rest on: the bar's back (+x of
+    ``hook``) when pulling open; ``hook_front`` lies on the bar's front and would slip off."""
+    inst = door.instantiate(pose=facing_robot(), joints={"hinge": 0.3})
+    options = {o.grasp: o for o in inst.rank("open")}
+    assert options["hook"].feasible
+    front = options["hook_front"]
+    assert not front.feasible and "pulls the fingers off the wall" in front.reasons[0]
+    for o in (options["hook"], front):  # the check is on +x of the pose, in the world
+        f = inst.force("open", grasp=o.pose)
+        assert (float(f @ o.pose[:3, 0]) > 0) == o.feasible
+
+
+@pytest.fixture(scope="module")
+def lib() -> eac.Library:
+    return eac.load_library()
+
+
+def _judge(inst: eac.Instance, action: str, grasp: str) -> Option:
+    """One grasp judged for an action, whether or not the action lists it."""
+    return judge(inst, inst._action(action), grasp, Gripper.panda(), 8, None)
+
+
+def test_a_sliding_window_opens_and_closes_by_opposite_pocket_walls(lib: eac.Library) -> None:
+    window = lib["SlidingWindow"].instantiate(pose=facing_robot(), joints={"track": 0.2})
+    assert [o.grasp for o in window.rank("open")] == ["handle.pull"]
+    assert [o.grasp for o in window.rank("close")] == ["handle.pull_back"]
+    for action, right, wrong in (
+        ("open", "handle.pull", "handle.pull_back"),
+        ("close", "handle.pull_back", "handle.pull"),
+    ):
+        assert _judge(window, action, right).feasible
+        bad = _judge(window, action, wrong)
+        assert not bad.feasible and "pulls the fingers off the wall" in bad.reasons[0]
+
+
+def test_a_pocket_pull_slides_each_way_by_its_own_wall(lib: eac.Library) -> None:
+    pocket = lib["PocketHandle"].instantiate(pose=facing_robot())
+    (opening,) = pocket.rank("slide_open")
+    (closing,) = pocket.rank("slide_closed")
+    assert (opening.grasp, opening.feasible) == ("pull", True)
+    assert (closing.grasp, closing.feasible) == ("pull_back", True)
+    assert not _judge(pocket, "slide_closed", "pull").feasible
+    assert not _judge(pocket, "slide_open", "pull_back").feasible
