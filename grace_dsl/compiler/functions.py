@@ -8,6 +8,7 @@ parameters), and where relevant the joint values ``q``, the free grasp parameter
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -76,30 +77,17 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
             add(fn_key("grasp_width", gname), [("p", p)], [("width", g.width)])
         if g.axis is not None:
             add(fn_key("grasp_axis", gname), [("p", p), ("g", gv)], [("axis", _vec(g.axis))])
-    x = ca.SX.sym("x", 3)
-    for aname, a in low.actions.items():
-        add(
-            fn_key("force", aname),
-            [("p", p), ("q", q), ("x", x)],
-            [("f", force_direction(low, a.name, [x[0], x[1], x[2]]))],
-        )
-    add(
-        "requires",
-        [("p", p)],
-        [
-            ("r", _vec([r.residual for r in low.requires])),
-            ("holds", _vec([r.holds for r in low.requires])),
-        ],
-    )
+    _add_world_queries(low, p, q, add)
+    holds = _vec([r.holds for r in low.requires])
+    add("requires", [("p", p)], [("r", _vec([r.residual for r in low.requires])), ("holds", holds)])
     moving = [j for j in low.joints if j.kind != "fixed"]
-    add(
-        "joint_limits",
-        [("p", p)],
-        [
-            ("lo", _vec([j.lo if j.lo is not None else -ca.inf for j in moving])),
-            ("hi", _vec([j.hi if j.hi is not None else ca.inf for j in moving])),
-        ],
-    )
+    limits = [
+        ("lo", _vec([j.lo if j.lo is not None else -ca.inf for j in moving])),
+        ("hi", _vec([j.hi if j.hi is not None else ca.inf for j in moving])),
+    ]
+    add("joint_limits", [("p", p)], limits)
+    # what instantiating needs in one call: the requirement tests and the joint ranges
+    add("instance_checks", [("p", p)], [("holds", holds), *limits])
     add(
         "joint_axes",
         [("p", p), ("q", q)],
@@ -118,6 +106,45 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
             [("T", _mat(shape.pose)), ("args", _vec(args)), ("at", _mat(shape.at))],
         )
     return Compiled(low, fns)
+
+
+Add = Callable[[str, list[tuple[str, Any]], list[tuple[str, Any]]], None]
+
+
+def _add_world_queries(low: Lowered, p: Any, q: Any, add: Add) -> None:
+    """Fused per-call queries in world coordinates, so the runtime makes one native call where
+    it would make two or three and then finish the job with numpy:
+
+    * ``grasps_world:NAME(p, q, u, M)``: ``M G(p, q, lo + u (hi - lo))``, the grasp at a point
+      ``u`` of the unit box of free parameters (its range evaluated inside), at world pose M;
+    * ``force:NAME(p, q, M, t)``: ``R f(p, q, R^T (t - t_M))``, the force at the world point t
+      (the paper's ``F_world = R F_local``); with M = [I | 0] it is the force in the concept
+      frame.
+
+    M is passed as its top three rows ``[R | t_M]`` (3x4).
+    """
+    m = ca.SX.sym("M", 3, 4)  # the rows of M that are not (0, 0, 0, 1): fewer operations
+    rot, origin = m[:, :3], m[:, 3]
+    for gname, g in low.grasps.items():
+        gv = _column(list(g.symbols), "g")
+        u = ca.SX.sym("u", gv.numel())
+        lo, hi = _vec([f.lo for f in g.free]), _vec([f.hi for f in g.free])
+        local = ca.substitute(_mat(g.pose), gv, lo + u * (hi - lo)) if gv.numel() else _mat(g.pose)
+        world = ca.vertcat(ca.mtimes(m, local), ca.horzcat(0, 0, 0, 1))
+        add(
+            fn_key("grasps_world", gname),
+            [("p", p), ("q", q), ("u", u), ("M", m)],
+            [("T", world)],
+        )
+    t = ca.SX.sym("t", 3)
+    local_point = ca.mtimes(rot.T, t - origin)
+    for aname in low.actions:
+        f_local = force_direction(low, aname, [local_point[0], local_point[1], local_point[2]])
+        add(
+            fn_key("force", aname),
+            [("p", p), ("q", q), ("M", m), ("t", t)],
+            [("f", ca.mtimes(rot, f_local))],
+        )
 
 
 AXIS_TOLERANCE = 1e-6  # metres (times the axis' unit length)

@@ -45,6 +45,10 @@ def _pose(value: Any) -> np.ndarray:
         raise ParameterError(
             "pose must be a rigid transform (orthonormal rotation, last row 0 0 0 1)"
         )
+    if np.linalg.det(r) < 0:
+        raise ParameterError(
+            "pose must be a rigid transform: its rotation is a mirror image (determinant -1)"
+        )
     return m
 
 
@@ -96,7 +100,7 @@ def _plainly_rigid(rows: list[list[float]]) -> bool:
         a + b + c + d + e + f + g + h + i + x + y + z
     ):
         return False
-    tol = 1e-6  # columns orthonormal: R^T R = I
+    tol = 1e-6  # columns orthonormal: R^T R = I, and no mirror: det R = +1
     return (
         abs(a * a + d * d + g * g - 1.0) <= tol
         and abs(b * b + e * e + h * h - 1.0) <= tol
@@ -104,6 +108,7 @@ def _plainly_rigid(rows: list[list[float]]) -> bool:
         and abs(a * b + d * e + g * h) <= tol
         and abs(a * c + d * f + g * i) <= tol
         and abs(b * c + e * f + h * i) <= tol
+        and a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0.0
     )
 
 
@@ -123,7 +128,8 @@ class Instance:
         concept: Concept, pose: Any, joints: Mapping[str, float], params: Mapping[str, Any]
     ) -> Instance:
         p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing kwargs
-        holds = concept.function("requires")(p)[1].ravel().tolist()
+        held, low, high = concept.function("instance_checks")(p)  # requires and joint ranges
+        holds = held.ravel().tolist()
         if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
             check_requirements(holds, concept.entry["requires"], concept.params, p, concept.name)
         q = np.zeros(len(concept.moving_joints))
@@ -132,7 +138,7 @@ class Instance:
                 raise ParameterError(
                     f"joints must be a mapping {{name: value}}, not {type(joints).__name__}"
                 )
-            lo, hi = (x.ravel().tolist() for x in concept.function("joint_limits")(p))
+            lo, hi = low.ravel().tolist(), high.ravel().tolist()
             for name, value in joints.items():
                 if name not in concept.moving_joints:
                     raise UnknownNameError(
@@ -256,10 +262,12 @@ class Instance:
         if type(n) is not int or n < 1:
             n = _count("n", n, 1)
         entry = self._grasp_entry(name)
-        lo, hi, _ = self._free_box(name)
-        samples = _spread_box(lo, hi, n)
-        poses = self.pose @ self.concept.function("grasp", name).batch(self.p, self.q, samples)
+        unit = _unit_points(n, len(entry["free"]))  # the spread over the unit box
+        fn = self.concept.function("grasps_world", name)  # M G(lo + unit (hi - lo)), one call
+        poses = np.ascontiguousarray(fn.batch(self.p, self.q, unit, self.pose[:3]))
         if entry.get("symmetric"):
+            lo, hi, _ = self._free_box(name)
+            samples = _spread_box(lo, hi, n)
             axes = self.concept.function("grasp_axis", name).batch(self.p, samples)
             poses = spin_to_reference(poses, np.asarray(axes).reshape(-1, 3), reference)
         return poses
@@ -280,10 +288,9 @@ class Instance:
     def force(self, action: str, grasp: Any) -> np.ndarray:
         """Unit world direction in which the gripper at pose ``grasp`` must push or pull."""
         self._action(action)
-        rotation = self.pose[:3, :3]
-        point = (_pose(grasp)[:3, 3] - self.pose[:3, 3]) @ rotation  # R^T (t - t_M): concept frame
-        f_local = self.concept.function("force", action)(self.p, self.q, point)
-        f = rotation @ f_local.reshape(3)
+        point = _pose(grasp)[:3, 3]  # R f(R^T (t - t_M)) in one native call
+        f = self.concept.function("force", action)(self.p, self.q, self.pose[:3], point)
+        f = f.reshape(3)
         if not math.isfinite(f[0] + f[1] + f[2]):
             raise ParameterError(
                 f"the grasp point lies on the axis of {action}'s joint: no linear force moves "

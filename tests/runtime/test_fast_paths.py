@@ -235,7 +235,10 @@ def test_force_matches_the_solve(gadget: eac.Concept, action: str) -> None:
         g = np.eye(4)
         g[:3, :3], g[:3, 3] = random_rotation(rng), inst.pose[:3, 3] + rng.normal(size=3) * 0.1
         point = np.linalg.solve(inst.pose, g[:, 3])[:3]
-        f_local = np.asarray(gadget.function("force", action)(inst.p, inst.q, point)).reshape(3)
+        concept_frame = np.eye(4)[:3]  # the kernel at M = [I | 0]: the force in the concept
+        f_local = np.asarray(
+            gadget.function("force", action)(inst.p, inst.q, concept_frame, point)
+        ).reshape(3)
         want = inst.pose[:3, :3] @ f_local
         np.testing.assert_allclose(inst.force(action, grasp=g), want, atol=1e-12)
         assert np.linalg.norm(want) == pytest.approx(1.0)

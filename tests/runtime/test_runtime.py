@@ -135,6 +135,7 @@ def test_handle_part_matches_the_handle_concept(lib) -> None:  # type: ignore[no
         ({"r_in": (0.01, 0.02)}, eac.ParameterError, "takes 1 value"),
         ({"pose": np.zeros((4, 4))}, eac.ParameterError, "rigid transform"),
         ({"radian": True}, eac.ParameterError, "not a bool"),
+        ({"pose": np.diag([1.0, 1.0, -1.0, 1.0])}, eac.ParameterError, "mirror image"),
         ({"joints": {"hinge": 0.1}}, eac.UnknownNameError, "no moving joints"),
     ],
 )
