@@ -24,8 +24,13 @@ standoff)``, the grasp family ``T(s, 0, 0) Ry(180deg)`` over 16 evenly spread ``
   sizes, finiteness, the nine ``require``s, joint ranges, a rigid pose).
 
 A fourth row calls the compiled native functions the runtime uses directly, without the API and
-its checks: the floor of any runtime built on these five kernel calls. All must agree with
+its checks: the floor of any runtime built on these three kernel calls. All must agree with
 the runtime to 1e-9 before anything is timed.
+
+The target (the issue: no slower than an equivalent hand-written numpy implementation) is the
+"validated" row, which does what the runtime does, and the "as written" row; the script exits 1
+if either is missed. The "simplified math" row skips every check and hand-folds the products for
+this one concept: it is printed as a reference, the floor of what numpy can do here.
 
 Each figure is the median (and min) over ``repeats`` interleaved timeit runs, each sized by
 ``Timer.autorange``. Results are printed and written to bench/results/runtime.json.
@@ -90,28 +95,24 @@ def runtime_call(chest: Any) -> tuple[np.ndarray, np.ndarray]:
 def kernels_only(chest: Any) -> Any:
     """The compiled functions the runtime calls, called directly: no API, no checks beyond the
     parameter packing. What the Python around them costs is the runtime's row minus this one."""
-    fns = [chest.function(*k) for k in KERNELS]
-    requires, limits, box, grasp, force = fns
+    checks, grasps_world, force_world = (chest.function(*k) for k in KERNELS)
     unit = np.linspace(0.0, 1.0, N_GRASPS).reshape(-1, 1)
 
     def call() -> tuple[np.ndarray, np.ndarray]:
         p = chest.pack(**PARAMS)
-        requires(p)
-        limits(p)
+        checks(p)
         q = np.array([JOINTS["slide1"], JOINTS["slide2"], 0.0])
-        lo, hi, _ = box(p)
-        grasps = POSE @ grasp.batch(p, q, unit * (hi - lo).item() + lo.item())
-        point = (grasps[FORCE_AT, :3, 3] - POSE[:3, 3]) @ POSE[:3, :3]
-        return grasps, POSE[:3, :3] @ force(p, q, point).reshape(3)
+        grasps = grasps_world.batch(p, q, unit, POSE[:3])
+        return grasps, force_world(p, q, POSE[:3], grasps[FORCE_AT, :3, 3]).reshape(3)
 
     return call
 
 
+# the fused kernels of one step: requirements with joint ranges, the grasp family's poses in the
+# world (its range inside), the world force (grace_dsl/compiler/functions.py)
 KERNELS = (
-    ("requires",),
-    ("joint_limits",),
-    ("grasp_range", "handle1.pull"),
-    ("grasp", "handle1.pull"),
+    ("instance_checks",),
+    ("grasps_world", "handle1.pull"),
     ("force", "open1"),
 )
 
@@ -221,7 +222,7 @@ def numpy_validated(
     )
     h, margin = (size[1] - 4 * GAP) / 3, radius + 12 * MM
     requires = (
-        standoff - radius >= 12 * MM,  # each handle (three alike): room behind the bar
+        standoff - radius >= 19 * MM,  # each handle (three alike): a finger behind the bar
         length / 2 > margin,  # each handle: the fingers fit between the posts
         travel <= size[2] - 50 * MM,
         length + 2 * radius < size[0] - 60 * MM,
@@ -269,12 +270,20 @@ def check_agreement(chest: Any) -> None:
     inst = chest.instantiate(pose=POSE, joints=JOINTS, **PARAMS)
     for g, s in zip(grasps, np.linspace(*inst.grasp_range("handle1.pull")["s"], N_GRASPS)):
         np.testing.assert_allclose(inst.grasp("handle1.pull", s=s), g, rtol=0, atol=1e-12)
-    try:
-        numpy_validated(POSE, JOINTS, {**PARAMS, "handle1.radius": 0.02})
-    except ValueError:
-        pass
-    else:
-        raise AssertionError("the validated numpy variant accepted an out-of-range radius")
+    # the validated variant rejects what the runtime rejects
+    for bad in ({"handle1.radius": 0.02}, {"handle1.standoff": 0.025}, {"travel": 0.5}):
+        try:
+            numpy_validated(POSE, JOINTS, {**PARAMS, **bad})
+        except ValueError:
+            pass
+        else:
+            raise AssertionError(f"the validated numpy variant accepted {bad}")
+        try:
+            chest.instantiate(pose=POSE, joints=JOINTS, **{**PARAMS, **bad})
+        except eac.ParameterError:
+            pass
+        else:
+            raise AssertionError(f"the runtime accepted {bad}")
 
 
 def fmt(seconds: float) -> str:
@@ -322,9 +331,11 @@ def main() -> int:
             f"{r['case']:<40}{fmt(r['median_s']):>16}{fmt(r['min_s']):>14}"
             f"{r['runtime_over_this']:>15.2f}x"
         )
-    targets = {f"runtime <= {r['case']}": runtime_s <= r["median_s"] for r in rows[:3]}
+    targets = {f"runtime <= {r['case']}": runtime_s <= r["median_s"] for r in rows[1:3]}
     for name, ok in targets.items():
         print(f"  [{'ok' if ok else 'MISSED'}] {name}")
+    reference = rows[0]
+    print(f"  [reference] runtime / {reference['case']}: {reference['runtime_over_this']:.2f}x")
 
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(
