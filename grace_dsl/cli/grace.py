@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -14,16 +17,23 @@ from grace_dsl.cli.output import print_text
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="grace", description="The GRACE pipeline.")
     sub = parser.add_subparsers(dest="command")
-    sub.add_parser("demo", help="compile the standard library and show what a concept computes")
+    demo_parser = sub.add_parser(
+        "demo", help="compile the standard library and show what a concept computes"
+    )
+    demo_parser.add_argument(
+        "-o", "--output", default="out/demo", help="where the picture and viewer page go"
+    )
     args = parser.parse_args(argv)
     if args.command != "demo":
         parser.print_help()
         return 2
-    return demo()
+    return demo(Path(args.output))
 
 
-def demo() -> int:
-    """Compile the standard library, list it, and instantiate the paper's sunken door."""
+def demo(output: Path) -> int:
+    """Compile the standard library, list it, and put the paper's sunken door through its paces:
+    a grasp, the force and path that open it, the manipulation functions a Panda hand and a
+    hand that cannot close would use, and a picture and 3D page of it all."""
     status = eacc_main(["list"])
     if status:
         return status
@@ -37,7 +47,43 @@ def demo() -> int:
     print_text(f"force to open: {door.force('open', grasp)}")
     path = door.follow("open", grasp, to=1.2, steps=5)
     print_text(f"gripper positions while opening to 1.2 rad:\n{path[:, :3, 3]}")
+    panda = replace(eac.Gripper.panda(), name="the Panda hand")
+    no_fingers = replace(panda, name="a hand that cannot close", can_close=False)
+    for action in ("open", "close"):
+        for hand in (panda, no_fingers):
+            _print_options(door, action, hand)
+    _pictures(door, output)
     return 0
+
+
+def _print_options(inst: Any, action: str, hand: Any) -> None:
+    """The manipulation functions of ``action`` for ``hand``, best first."""
+    lines = [f"\nto {action} with {hand.name}:"]
+    for o in inst.rank(action, hand):
+        verdict = "yes" if o.feasible else "no: " + "; ".join(o.reasons)
+        lines.append(f"  {o.grasp:<14} by {o.mode:<6} {verdict}")
+    print_text("\n".join(lines))
+
+
+def _pictures(inst: Any, output: Path) -> None:
+    """A PNG (MuJoCo, offscreen) and a self-contained HTML viewer of the door with its grasp
+    frames, forces and hinge axis; the PNG is skipped with a note where no OpenGL exists."""
+    from grace_dsl.render.html import write_html
+    from grace_dsl.render.png import RenderError
+    from grace_dsl.render.scene import describe
+
+    scene = describe(inst)
+    output.mkdir(parents=True, exist_ok=True)
+    html = write_html(scene, output / "SunkenDoor.html", "hinge = 0.4 rad")
+    print_text(f"\n3D viewer (open in a browser): {html}")
+    try:
+        from grace_dsl.export.model import build_model
+        from grace_dsl.render.png import write_png
+
+        png = write_png(scene, output / "SunkenDoor.png", 800, 600, build_model(inst))
+        print_text(f"picture: {png}")
+    except (RenderError, ImportError) as exc:
+        print_text(f"picture skipped: {exc}")
 
 
 if __name__ == "__main__":

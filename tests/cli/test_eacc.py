@@ -93,3 +93,19 @@ def test_fmt_check_and_rewrite(tmp_path: Path, capsys: pytest.CaptureFixture[str
     formatted = path.read_text()
     assert "// keep me" in formatted and "param r : length = 2mm" in formatted
     assert main(["fmt", "--check", str(path)]) == 0
+
+
+def test_grace_demo_ranks_and_draws(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The demo a new user runs first: the door's grasp, force and path, the manipulation
+    functions two hands would use (a hand that cannot close pushes the door shut), and a
+    viewer page (the PNG is checked by tests/render)."""
+    from grace_dsl.cli.grace import main as grace_main
+
+    assert grace_main(["demo", "-o", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "force to open:" in out
+    after = out.split("to close with a hand that cannot close:")[1]
+    assert after.splitlines()[1].split()[-1] == "yes"  # its best option is a push
+    assert "by push" in after.splitlines()[1]
+    html = (tmp_path / "SunkenDoor.html").read_text()
+    assert "<script" in html and "SunkenDoor" in html
