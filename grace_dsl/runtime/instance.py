@@ -22,8 +22,12 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
 
 
+# Actions with these verbs turn the hand: along a joint, a grasp on its axis is twisted; with an
+# explicit direction (`turn toward (0, 0, 1)`), the direction is the axis of the twist.
+TWIST_VERBS = ("turn", "rotate")
 _EYE3 = np.eye(3)
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+_ORIGIN = np.zeros(3)  # any point: an explicit direction is the same everywhere
 
 
 def _pose(value: Any) -> np.ndarray:
@@ -287,7 +291,12 @@ class Instance:
 
     def force(self, action: str, grasp: Any) -> np.ndarray:
         """Unit world direction in which the gripper at pose ``grasp`` must push or pull."""
-        self._action(action)
+        entry = self._action(action)
+        if entry["joint"] is None and entry["verb"] in TWIST_VERBS:
+            raise ParameterError(
+                f"{action} turns the hand about a fixed axis and has no linear force: "
+                f"use inst.twist({action!r})"
+            )
         point = _pose(grasp)[:3, 3]  # R f(R^T (t - t_M)) in one native call
         f = self.concept.function("force", action)(self.p, self.q, self.pose[:3], point)
         f = f.reshape(3)
@@ -300,12 +309,17 @@ class Instance:
 
     def twist(self, action: str) -> np.ndarray:
         """The unit world axis about which the hand turns to perform ``action`` (right-handed):
-        for turning a knob or a cap with a grasp on its axis, where no linear force moves it."""
+        for turning a knob or a cap with a grasp on its axis, where no linear force moves it, and
+        for a ``turn``/``rotate`` action with an explicit direction, which is its axis."""
         entry = self._action(action)
         joint = entry["joint"]
+        if joint is None and entry["verb"] in TWIST_VERBS:  # the direction, in the world
+            axis = self.concept.function("force", action)(self.p, self.q, self.pose[:3], _ORIGIN)
+            return np.asarray(axis, dtype=float).reshape(3)
         if joint is None or self.concept.joints[joint]["kind"] == "prismatic":
             raise ParameterError(
-                f"action {action} turns nothing: it needs a revolute or continuous joint"
+                f"action {action} turns nothing: it needs a revolute or continuous joint, "
+                "or the verb turn or rotate with a direction"
             )
         i = self.concept.moving_joints.index(joint)
         axes, _ = self.concept.function("joint_axes")(self.p, self.q)

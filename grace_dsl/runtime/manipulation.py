@@ -22,13 +22,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.instance import TWIST_VERBS
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.gripper import Gripper
     from grace_dsl.runtime.instance import Instance
 
 MODE_ORDER = {"pinch": 0, "hook": 1, "push": 2, "press": 2}
-TWIST_VERBS = ("turn", "rotate")
 # A push transmits force within this angle of the fingers' direction (+z): 60 deg, a friction
 # cone with mu ~ 1.7, generous on purpose; a hook anything outside it (towards its +x side).
 CONTACT_CONE = math.radians(60.0)

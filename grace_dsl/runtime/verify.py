@@ -43,7 +43,7 @@ import numpy as np
 from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime.errors import ParameterError, RequirementError
 from grace_dsl.runtime.gripper import Gripper, finger_points
-from grace_dsl.runtime.instance import _spread
+from grace_dsl.runtime.instance import TWIST_VERBS, _spread
 from grace_dsl.runtime.shapes import ShapeTree
 
 if TYPE_CHECKING:
@@ -58,7 +58,6 @@ UNIT = 1e-9  # tolerance on |force| = 1
 FREE_SAMPLES = 5  # free-parameter values per grasp family (spread over its box)
 FOLLOW_STEPS = 8
 MAX_ATTEMPTS = 50  # draws attempted per requested draw before giving up on a tight `require`
-TWIST_VERBS = ("turn", "rotate")  # a grasp on these actions' axis is turned, not pushed
 
 CHECKS = ("near", "between", "width", "penetration", "into", "power", "unit_force", "follow")
 
@@ -535,9 +534,11 @@ class _Run:
             self._check_power(inst, action, entry, s, member)
             self._check_follow(inst, action, entry, s, member)
             return
-        f = inst.force(action, grasp=s.pose)
+        twist = entry["verb"] in TWIST_VERBS  # a fixed axis to turn about, not a force
+        f = inst.twist(action) if twist else inst.force(action, grasp=s.pose)
         err = abs(float(np.linalg.norm(f)) - 1.0) if np.all(np.isfinite(f)) else math.inf
-        message = f"the force {np.round(f, 6).tolist()} is not a unit vector"
+        what = "twist axis" if twist else "force"
+        message = f"the {what} {np.round(f, 6).tolist()} is not a unit vector"
         self._record(inst, member, s, _at_most("unit_force", err, UNIT, "", message))
 
     def _check_power(

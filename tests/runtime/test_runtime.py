@@ -240,3 +240,40 @@ def test_a_part_choice_bound_to_an_option_compiles(tmp_path) -> None:  # type: i
         .grasp(next(iter(g.grasps)).split(".", 1)[1])
     )
     np.testing.assert_allclose(right, left, atol=1e-12)
+
+
+VALVE = """use primitives.{Cylinder}
+
+/// A valve wheel on a pipe, turned about its own axis (+z, out of the front).
+concept Valve {
+    param radius : length in [15mm, 38mm] = 30mm
+    shape wheel = Cylinder(radius: radius, height: 20mm)
+    /// Pinch the wheel from the front across its diameter.
+    grasp grip = roty(180deg) width 2 * radius
+    /// Open the valve: turn it counter-clockwise seen from the front.
+    action open = turn toward (0, 0, 1) using grip
+    /// Close it: turn it clockwise.
+    action close = turn toward (0, 0, -1) using grip
+}
+"""
+
+
+def test_a_turn_with_a_direction_is_a_twist_about_it(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`turn toward a` has no linear force: the hand turns about a (in the world), a pinch can
+    do it, and verification checks the axis is a unit vector."""
+    from grace_dsl.runtime.verify import verify_concept
+
+    src = tmp_path / "valve.eac"
+    src.write_text(VALVE)
+    valve = eac.compile_paths([src])["Valve"]
+    pose = random_pose(np.random.default_rng(3))
+    inst = valve.instantiate(pose=pose)
+    np.testing.assert_allclose(inst.twist("open"), pose[:3, 2], atol=1e-12)
+    np.testing.assert_allclose(inst.twist("close"), -pose[:3, 2], atol=1e-12)
+    with pytest.raises(eac.ParameterError, match="inst.twist"):
+        inst.force("open", grasp=inst.grasp("grip"))
+    (option,) = inst.rank("open")
+    assert option.feasible and option.mode == "pinch"
+    report = verify_concept(valve, draws=3, seed=0)
+    assert report.failures == ()
+    assert report.evaluated.get("unit_force", 0) > 0
