@@ -674,11 +674,11 @@ def update_library_doc(path: str | Path, lib: Library) -> bool:
     the file changed. Raises ``ValueError`` when the markers are missing."""
     path = Path(path)
     text = path.read_text("utf-8")
-    start, end = text.find(LIBRARY_TABLE_BEGIN), text.find(LIBRARY_TABLE_END)
-    if start < 0 or end < start:
+    span = _table_span(text)
+    if span is None:
         raise ValueError(f"{path}: the generated-table markers are missing")
-    head = text[: start + len(LIBRARY_TABLE_BEGIN)]
-    new = f"{head}\n\n{library_table(lib)}\n{text[end:]}"
+    start, end = span
+    new = f"{text[:start]}\n\n{library_table(lib)}\n{text[end:]}"
     if new == text:
         return False
     path.write_text(new, "utf-8")
@@ -687,10 +687,16 @@ def update_library_doc(path: str | Path, lib: Library) -> bool:
 
 def generated_library_table(text: str) -> str | None:
     """The text between the markers of a markdown page (None without them)."""
+    span = _table_span(text)
+    return None if span is None else text[span[0] : span[1]].strip("\n") + "\n"
+
+
+def _table_span(text: str) -> tuple[int, int] | None:
+    """Where the generated tables sit: from the end of the begin marker to the end marker."""
     start, end = text.find(LIBRARY_TABLE_BEGIN), text.find(LIBRARY_TABLE_END)
     if start < 0 or end < start:
         return None
-    return text[start + len(LIBRARY_TABLE_BEGIN) : end].strip("\n") + "\n"
+    return start + len(LIBRARY_TABLE_BEGIN), end
 
 
 if __name__ == "__main__":  # python -m grace_dsl.runtime.catalog docs/library.md

@@ -237,7 +237,7 @@ def check_requirements(
 
 
 def _explain(i: int, req: Mapping[str, Any], specs: Mapping[str, ParamSpec], p: np.ndarray) -> str:
-    """``"message" (condition, line N) with a = ..., b = ...`` for one failed requirement."""
+    """``message (condition, file.eac:N) with a = ..., b = ...`` for one failed requirement."""
     text = req.get("message") or f"requirement {i + 1}"
     where = ", ".join(x for x in (req.get("condition"), req.get("where")) if x)
     values = [_value_text(specs[n], p) for n in req.get("params", ()) if n in specs]

@@ -167,10 +167,10 @@ def _contact(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray
     """Why a contact of this mode cannot apply the action's force at this pose (None: it can)."""
     try:
         f = inst.force(action["name"], grasp=pose)
-    except ParameterError:  # on the joint's axis: only a grip can turn it
+    except ParameterError:  # a twist (on the joint's axis, or a fixed axis): only a grip turns it
         if action["verb"] in TWIST_VERBS and mode == "pinch":
             return None
-        return "the grasp is on the joint's axis, where only a grip can turn it"
+        return "the action turns the hand here (no linear force), which only a grip can do"
     along = float(f @ pose[:3, 2])
     if mode in ("push", "press") and along < math.cos(CONTACT_CONE):
         deg = math.degrees(math.acos(max(-1.0, min(1.0, along))))
