@@ -20,14 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from grace_dsl.export.common import geom_file_stem, mesh_dir_name, output_file
+from grace_dsl.export.common import geom_file_stem, mesh_dir_name, output_file, rpy_matrix
 from grace_dsl.export.meshes import MESH_FORMATS, mesh_summary, write_instance_mesh
 from grace_dsl.export.mjcf import MJCF_NATIVE, write_mjcf
 from grace_dsl.export.model import DENSITY, WALL, ExportModel, ExportOptions, build_model
 from grace_dsl.export.urdf import URDF_NATIVE, write_urdf
 from grace_dsl.runtime.concept import ParamSpec
 from grace_dsl.runtime.errors import GraceError
-from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.instance import Instance, rigid_problem
 
 
 class ExportUsageError(GraceError):
@@ -90,18 +90,6 @@ def numbers(text: str) -> list[float]:
     return [float(x) for x in text.strip("()[] ").replace(",", " ").split() if x]
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``Rz(yaw) Ry(pitch) Rx(roll)``: the language's ``rpy`` (fixed axes x, y, z), as URDF."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
 def pose_from_numbers(values: Sequence[float], where: str) -> np.ndarray:
     """A rigid 4x4 pose from 3 numbers (x, y, z), 6 (x, y, z, roll, pitch, yaw; m, rad) or 16
     (a row-major 4x4); ``where`` names the source in the error."""
@@ -120,16 +108,9 @@ def pose_from_numbers(values: Sequence[float], where: str) -> np.ndarray:
             f"(a row-major 4x4 matrix), got {len(v)}"
         )
     pose = v.reshape(4, 4)
-    r = pose[:3, :3]
-    if (
-        np.abs(r.T @ r - np.eye(3)).max() > 1e-6
-        or np.linalg.det(r) < 0
-        or np.abs(pose[3] - [0, 0, 0, 1]).max() > 1e-12
-    ):
-        raise ExportUsageError(
-            f"{where}: the 4x4 matrix is not a rigid transform (its rotation must be orthonormal "
-            "with determinant +1 and its last row 0 0 0 1)"
-        )
+    problem = rigid_problem(pose)
+    if problem is not None:
+        raise ExportUsageError(f"{where}: the 4x4 matrix is not a rigid transform: {problem}")
     return pose
 
 

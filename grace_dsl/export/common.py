@@ -49,6 +49,18 @@ def rpy(r: np.ndarray) -> tuple[float, float, float]:
     return 0.0, pitch, math.atan2(-r[0, 1], r[1, 1])  # gimbal lock: only yaw - roll is defined
 
 
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)``: the language's ``rpy`` (fixed axes x, y, z), as URDF."""
+    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
 def quat_wxyz(r: np.ndarray) -> tuple[float, float, float, float]:
     """The unit quaternion (w, x, y, z; MJCF's order) of a rotation matrix (Shepperd's method)."""
     tr = float(np.trace(r))

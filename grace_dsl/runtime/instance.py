@@ -44,16 +44,21 @@ def _pose(value: Any) -> np.ndarray:
     m = np.asarray(value, dtype=float)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise ParameterError(f"pose must be a finite 4x4 matrix, got shape {m.shape}")
+    problem = rigid_problem(m)
+    if problem is not None:
+        raise ParameterError(f"pose must be a rigid transform: {problem}")
+    return m
+
+
+def rigid_problem(m: np.ndarray) -> str | None:
+    """Why a finite 4x4 matrix is not a rigid transform (None when it is): the one test behind
+    every pose the project accepts, from the API or the command line."""
     r = m[:3, :3]
     if np.abs(r.T @ r - _EYE3).max() > 1e-6 or np.abs(m[3] - _LAST_ROW).max() > 1e-12:
-        raise ParameterError(
-            "pose must be a rigid transform (orthonormal rotation, last row 0 0 0 1)"
-        )
+        return "its rotation must be orthonormal with determinant +1 and its last row 0 0 0 1"
     if np.linalg.det(r) < 0:
-        raise ParameterError(
-            "pose must be a rigid transform: its rotation is a mirror image (determinant -1)"
-        )
-    return m
+        return "its rotation is a mirror image (determinant -1; a rotation has determinant +1)"
+    return None
 
 
 def _joint_number(name: str, value: Any) -> float:
