@@ -38,7 +38,8 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
 import grace_dsl as eac  # noqa: E402
-from grace_dsl.geometry import PRIMITIVES, primitive_mesh, primitive_sdf  # noqa: E402
+from grace_dsl.geometry import PRIMITIVES, primitive_sdf  # noqa: E402
+from grace_dsl.runtime.shapes import instance_meshes  # noqa: E402
 
 N_POINTS = 100_000
 N_SUBSET = 1_000
@@ -107,22 +108,6 @@ def per_primitive(repeats: int = 5) -> list[dict[str, Any]]:
     ]
 
 
-def _shape_meshes(inst: eac.Instance) -> list[trimesh.Trimesh]:
-    """Each shape of ``inst`` (primitives only, as in the rig) as a world mesh."""
-    q0 = np.zeros_like(inst.q)
-    meshes = []
-    for shape in inst.concept.entry["shapes"]:
-        pose, args, _ = inst.concept.function("shape", shape["name"])(inst.p, q0)
-        values, flat = {}, np.asarray(args, float).reshape(-1).tolist()
-        for arg in shape["args"]:
-            size = arg["size"]
-            values[arg["name"]] = flat[0] if size == 1 else tuple(flat[:size])
-            flat = flat[size:]
-        m = primitive_mesh(shape["primitive"], values)
-        meshes.append(m.apply_transform(inst.pose @ np.asarray(pose, float)))
-    return meshes
-
-
 def run_sdf() -> dict[str, Any]:
     """``Instance.sdf`` of the ten-primitive rig at 100,000 points against trimesh's queries on
     the same instance's mesh (``inst.mesh()``), in one process."""
@@ -132,7 +117,7 @@ def run_sdf() -> dict[str, Any]:
     # trimesh's queries need one closed surface: inst.mesh() concatenates the ten shapes'
     # meshes, whose overlaps would flip ray parity and expose buried faces, so they get the
     # boolean union (manifold3d) of the same meshes
-    mesh = trimesh.boolean.union(_shape_meshes(inst), engine="manifold")
+    mesh = trimesh.boolean.union(instance_meshes(inst), engine="manifold")
     pts = rng.uniform(mesh.bounds[0] - 0.05, mesh.bounds[1] + 0.05, (N_POINTS, 3))
     sub = pts[:N_SUBSET]
     inst.sdf(sub)  # load the concept's functions outside the timing

@@ -198,8 +198,11 @@ def _motions(tree: ShapeTree) -> dict[str, np.ndarray]:
     }
 
 
-def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64) -> trimesh.Trimesh:
-    """One mesh of every outermost shape (of ``link``, or of all links), in the world."""
+def instance_meshes(
+    inst: Instance, link: str | None = None, resolution: int = 64
+) -> list[trimesh.Trimesh]:
+    """A closed mesh per piece of every outermost shape (of ``link``, or of all links), in the
+    world: the solids whose union the instance is."""
     tree = ShapeTree(inst, resolution)
     motions = _motions(tree)
     warnings: list[str] = []
@@ -210,6 +213,12 @@ def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64)
     ]
     if warnings:
         raise ValueError("; ".join(warnings))
+    return meshes
+
+
+def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64) -> trimesh.Trimesh:
+    """One mesh of every outermost shape (of ``link``, or of all links), in the world."""
+    meshes = instance_meshes(inst, link, resolution)
     merged = trimesh.util.concatenate(meshes) if meshes else trimesh.Trimesh()
     assert isinstance(merged, trimesh.Trimesh)
     return merged
