@@ -23,7 +23,7 @@ __all__ = ["build_dir", "cache_dir", "private_dir", "untrusted_reason"]
 
 
 def cache_dir() -> Path:
-    """The cache root: ``$GRACE_CACHE_DIR`` if set, else the per-user cache (``~/.cache/grace-dsl``).
+    """The cache root: ``$GRACE_CACHE_DIR``, else the per-user cache (``~/.cache/grace-dsl``).
 
     Builds live in ``build/``, stand-alone native kernels in ``native/`` and the parser's tables
     in ``grammar/``, all under this one root.

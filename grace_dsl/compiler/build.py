@@ -74,7 +74,7 @@ class BuildResult:
 
 
 def default_cache_dir() -> Path:
-    """Where units live unless told otherwise: ``build/`` under :func:`grace_dsl.cache.cache_dir`."""
+    """Where units live unless told otherwise: ``build/`` under ``grace_dsl.cache.cache_dir()``."""
     return build_dir()
 
 
@@ -197,8 +197,9 @@ def _cache_warning(code: str, where: Path, message: str, hint: str) -> Diagnosti
     return Diagnostic(code, message, ast.Span(str(where), 0, 0, 0, 0), hint, "warning")
 
 
-def _run(missing: list[str], work: Callable[[str, native.Cancelled], None],
-         progress: Progress | None) -> None:
+def _run(
+    missing: list[str], work: Callable[[str, native.Cancelled], None], progress: Progress | None
+) -> None:
     """Build the missing units on a thread per core; any exception (Ctrl-C included) cancels
     the pending ones and tells the running ones to stop, instead of waiting for all of them."""
     # Lowering holds the GIL but the C compiler runs in a subprocess, so a thread per core

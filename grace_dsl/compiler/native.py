@@ -1085,9 +1085,7 @@ def fast_functions(
     return result
 
 
-def load_unit_library(
-    path: Path, functions: Mapping[str, casadi.Function]
-) -> dict[str, Evaluator]:
+def load_unit_library(path: Path, functions: Mapping[str, casadi.Function]) -> dict[str, Evaluator]:
     """Evaluators for a unit's functions: its library's kernels, CasADi's VM for the rest.
 
     The caller has checked the library's bytes and ownership. A library built for another
@@ -1098,7 +1096,7 @@ def load_unit_library(
     generated = _generate_all(functions)
     source = _PRELUDE + "".join(g.code for g in generated.values())
     if path.name != f"grace_{_library_key(source)}.so":
-        logger.warning("%s was built by another compiler or for another CPU; using CasADi's VM", path)
+        logger.warning("%s was built by another compiler or CPU; using CasADi's VM", path)
         return result
     result.update(_load(path, {n: functions[n] for n in generated}, generated))
     return result

@@ -72,7 +72,8 @@ def verify(unit_dir: Path) -> str | None:
         digest = _json_object(unit_dir / DIGEST)
         files = digest.get("files")
         if digest.get("format") != UNIT_FORMAT or digest.get("key") != unit_dir.name:
-            return f"{DIGEST} has format {digest.get('format')!r}, this compiler reads {UNIT_FORMAT}"
+            found = digest.get("format")
+            return f"{DIGEST} has format {found!r}, this compiler reads {UNIT_FORMAT}"
         if not isinstance(files, dict):
             return f"{DIGEST} lists no files"
         present = {p.name for p in unit_dir.iterdir()} - {DIGEST}
