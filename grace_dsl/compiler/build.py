@@ -105,10 +105,11 @@ def build(
     found = {f: store.find(keys[f]) for f in files}
     missing = [f for f in files if found[f] is None]
     result.cache_dir = store.root
+    if store.write is not None:
+        _clean_tmp(store.write / "tmp")
     if missing:
         target = store.writable(result.diagnostics, len(missing))
         result.cache_dir = target
-        _clean_tmp(target / "tmp")
 
         def work(f: str, cancelled: native.Cancelled) -> None:
             unit_dir = target / "units" / keys[f]
