@@ -19,7 +19,7 @@ from pathlib import Path
 
 import platformdirs
 
-__all__ = ["build_dir", "cache_dir", "private_dir", "untrusted_reason"]
+__all__ = ["build_dir", "cache_dir", "existing_private_dir", "private_dir", "untrusted_reason"]
 
 
 def cache_dir() -> Path:
@@ -67,7 +67,7 @@ def private_dir(name: str) -> Path:
     When that place is taken by someone else, a fresh private temporary directory that is removed
     at exit (never a trail of ``grace-dsl-cache-*`` directories).
     """
-    base = Path(tempfile.gettempdir()) / f"grace-dsl-{os.geteuid()}"
+    base = _private_base()
     try:
         base.mkdir(mode=0o700, exist_ok=True)
         target = base / name
@@ -79,3 +79,13 @@ def private_dir(name: str) -> Path:
     fresh = Path(tempfile.mkdtemp(prefix="grace-dsl-"))
     atexit.register(shutil.rmtree, fresh, True)
     return fresh
+
+
+def existing_private_dir(name: str) -> Path | None:
+    """:func:`private_dir` if an earlier run made it (and it is still private); never creates."""
+    target = _private_base() / name
+    return target if target.is_dir() and untrusted_reason(target) is None else None
+
+
+def _private_base() -> Path:
+    return Path(tempfile.gettempdir()) / f"grace-dsl-{os.geteuid()}"

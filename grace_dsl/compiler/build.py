@@ -33,7 +33,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from grace_dsl.cache import build_dir, private_dir, untrusted_reason
+from grace_dsl.cache import build_dir, existing_private_dir, private_dir, untrusted_reason
 from grace_dsl.compiler import native
 from grace_dsl.compiler.check import Checked, check
 from grace_dsl.compiler.resolve import Program, resolve
@@ -150,7 +150,8 @@ class _Store:
             return _Store(fallback, (fallback,), fallback if _writable(fallback) else None)
         if _writable(root):
             return _Store(root, (root,), root)
-        return _Store(root, (root, private_dir("build")), None)
+        earlier = existing_private_dir("build")
+        return _Store(root, (root,) if earlier is None else (root, earlier), None)
 
     def find(self, key: str) -> Unit | None:
         """The intact unit ``key``; a broken one in a writable place is moved aside."""

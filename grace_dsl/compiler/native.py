@@ -35,6 +35,7 @@ import platform
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -575,7 +576,14 @@ def _compile(
     """
     argv = [*cmd, *flags, *_LINK_FLAGS, "-o", str(target), *map(str, srcs), "-lm"]
     try:
-        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        # Its own process group: killing the driver alone would leave cc1 and as running.
+        proc = subprocess.Popen(
+            argv,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
     except OSError as err:
         return str(err)
     with proc:
@@ -587,7 +595,8 @@ def _compile(
             except subprocess.TimeoutExpired:
                 waited += 0.1
                 if (cancelled is not None and cancelled()) or waited > _COMPILE_TIMEOUT_S:
-                    proc.kill()
+                    with contextlib.suppress(ProcessLookupError):
+                        os.killpg(proc.pid, signal.SIGKILL)
                     proc.communicate()
                     if cancelled is not None and cancelled():
                         raise BuildCancelled(str(target)) from None

@@ -15,7 +15,9 @@ import re
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -50,7 +52,7 @@ def unit_of(result: build_mod.BuildResult, name: str) -> Path:
     return next(u.dir for u in result.units if Path(u.file).name == name)
 
 
-def top_grasps(units: list) -> np.ndarray:  # type: ignore[type-arg]
+def top_grasps(units: list[build_mod.Unit]) -> np.ndarray:
     inst = Library(units)["Block"].instantiate(size=(0.1, 0.2, 0.3))
     return np.asarray(inst.grasps("top", 5))
 
@@ -76,7 +78,7 @@ class _Evil:
     def __init__(self, marker: Path):
         self.marker = marker
 
-    def __reduce__(self):  # type: ignore[no-untyped-def]
+    def __reduce__(self) -> tuple[object, tuple[str]]:
         return (os.system, (f"touch {self.marker}",))
 
 
@@ -119,7 +121,9 @@ def test_a_pickle_in_the_grammar_cache_never_runs(tmp_path: Path) -> None:
     assert json.loads(stored.read_text())["sha256"]  # JSON, not a pickle
 
 
-def test_corrupted_grammar_tables_are_rebuilt(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_corrupted_grammar_tables_are_rebuilt(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from grace_dsl.lang import grammar_cache, parser
 
     monkeypatch.setenv("GRACE_CACHE_DIR", str(tmp_path))
@@ -139,7 +143,7 @@ def test_corrupted_grammar_tables_are_rebuilt(tmp_path: Path, monkeypatch: pytes
         lark = grammar_cache.cached_lark(parser.grammar(), parts, **options)
         builder = parts["transformer"]
         builder.path, builder.depth, builder.notes = "x", {}, []  # type: ignore[attr-defined]
-        (concept,) = lark.parse("concept A {}")
+        (concept,) = cast(Any, lark.parse("concept A {}"))
         assert concept.name == "A"
         rewritten = json.loads(stored.read_text())
         assert rewritten["sha256"] == hashlib.sha256(rewritten["tables"].encode()).hexdigest()
@@ -294,7 +298,7 @@ def _artifact(tmp_path: Path, native_code: bool = False) -> Path:
     return out
 
 
-def _edit_manifest(out: Path, edit) -> None:  # type: ignore[no-untyped-def]
+def _edit_manifest(out: Path, edit: Callable[[dict[str, Any]], object]) -> None:
     manifest = json.loads((out / "manifest.json").read_text())
     edit(manifest)
     (out / "manifest.json").write_text(json.dumps(manifest))
@@ -307,7 +311,7 @@ def test_artifact_unit_keys_cannot_leave_the_directory(tmp_path: Path) -> None:
     outside = tmp_path / "outside" / key
     shutil.copytree(out / "units" / key, outside)
 
-    def escape(m: dict) -> None:  # type: ignore[type-arg]
+    def escape(m: dict[str, Any]) -> None:
         m["units"] = {f"../../outside/{key}": m["units"].pop(key), **m["units"]}
 
     _edit_manifest(out, escape)
@@ -435,7 +439,7 @@ def test_ctrl_c_stops_a_build_promptly(tmp_path: Path) -> None:
     deadline = time.monotonic() + 120
     while not list(tmp_root.glob("*.lock")) and time.monotonic() < deadline:
         time.sleep(0.05)
-    time.sleep(0.5)  # lowering and compiling
+    time.sleep(3)  # into lowering and compiling (a compiler is running by now)
     proc.send_signal(signal.SIGINT)
     sent = time.monotonic()
     assert proc.wait(timeout=60) == 130
@@ -443,3 +447,81 @@ def test_ctrl_c_stops_a_build_promptly(tmp_path: Path) -> None:
     built = list((cache_root / "build" / "units").iterdir())
     assert len(built) < len(list(stdlib_dir().glob("*.eac")))
     assert list(tmp_root.iterdir()) == []  # the interrupted units cleaned up after themselves
+
+
+READ_ONLY_BUILD = """
+import json, sys
+from pathlib import Path
+from grace_dsl.compiler.build import build
+from grace_dsl.runtime.library import Library
+r = build([Path(sys.argv[1])], Path(sys.argv[2]), use_native=False)
+inst = Library(r.units)["Block"].instantiate(size=(0.1, 0.2, 0.3))
+print(json.dumps({
+    "rebuilt": sorted(Path(f).name for f in r.rebuilt),
+    "codes": [d.code for d in r.diagnostics],
+    "dirs": sorted(str(u.dir.parent.parent) for u in r.units),
+    "grasp": inst.grasp("top", t=0.01).tolist(),
+}))
+"""
+
+
+def _without_dac_override() -> None:
+    """Root writes through file modes; without CAP_DAC_OVERRIDE it obeys them like anyone."""
+    import ctypes
+
+    if os.geteuid() == 0:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(24, 1, 0, 0, 0) != 0:  # PR_CAPBSET_DROP, CAP_DAC_OVERRIDE
+            raise OSError(ctypes.get_errno(), "prctl(PR_CAPBSET_DROP)")
+
+
+def test_a_read_only_cache_is_read(tmp_path: Path) -> None:
+    """Before: a read-only populated cache was never read, and every run built everything in a
+    new /tmp/grace-dsl-cache-* directory that stayed behind."""
+    import tempfile
+
+    shared = Path(tempfile.mkdtemp(prefix="grace-ro-"))  # others may traverse it
+    try:
+        shared.chmod(0o755)
+        src, cache_root = source(shared), shared / "cache"
+        first = build([src], cache_root, use_native=False)
+        expected = Library(first.units)["Block"].instantiate(size=(0.1, 0.2, 0.3))
+        scratch = shared / "scratch"  # the reader's TMPDIR: sticky, like /tmp
+        scratch.mkdir()
+        scratch.chmod(0o1777)
+        for p in [shared / "src", *shared.glob("src/*")]:
+            p.chmod(0o755 if p.is_dir() else 0o644)
+        for p in [cache_root, *cache_root.rglob("*")]:
+            p.chmod(p.stat().st_mode & ~0o222)
+        fallback = scratch / f"grace-dsl-{os.geteuid()}" / "build"
+
+        def run() -> dict[str, Any]:
+            proc = subprocess.run(
+                [sys.executable, "-c", READ_ONLY_BUILD, str(src), str(cache_root)],
+                env=subprocess_env(cache_root, TMPDIR=str(scratch), HOME=str(scratch)),
+                capture_output=True,
+                text=True,
+                timeout=300,
+                preexec_fn=_without_dac_override,
+            )
+            assert proc.returncode == 0, proc.stderr
+            return json.loads(proc.stdout)
+
+        warm = run()
+        assert warm["rebuilt"] == [] and warm["codes"] == []
+        assert warm["dirs"] == [str(cache_root)] * 2
+        np.testing.assert_array_equal(warm["grasp"], expected.grasp("top", t=0.01))
+        assert sorted(p.name for p in scratch.iterdir()) == []  # nothing left behind
+
+        src.write_text(BLOCK.replace("A plain block.", "A plain block, edited."))
+        changed = run()
+        assert changed["rebuilt"] == ["block.eac"] and changed["codes"] == ["E301"]
+        assert changed["dirs"] == sorted([str(cache_root), str(fallback)])
+        again = run()  # the private fallback is reused, not rebuilt
+        assert again["rebuilt"] == [] and again["codes"] == []
+        assert sorted(p.name for p in scratch.iterdir()) == [fallback.parent.name]
+    finally:
+        for p in [shared, *shared.rglob("*")]:
+            if p.is_dir() and not p.is_symlink():
+                p.chmod(0o755)
+        shutil.rmtree(shared, ignore_errors=True)
