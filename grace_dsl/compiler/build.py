@@ -401,7 +401,8 @@ def _native_library(
 def export_library(result: BuildResult, out_dir: Path) -> list[Diagnostic]:
     """Write a self-contained artifact: ``manifest.json`` plus a copy of every unit."""
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
+        out_dir.mkdir(mode=0o755, parents=True, exist_ok=True)
+        (out_dir / "units").mkdir(mode=0o755, exist_ok=True)
         for unit in result.units:
             target = out_dir / "units" / unit.key
             if not target.exists():

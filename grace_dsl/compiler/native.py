@@ -707,6 +707,10 @@ def _build_cached(
     target = out_dir / f"{name}.so"
     if _verified(target):
         return target
+    reason = untrusted_reason(out_dir) if out_dir.exists() else None
+    if reason is not None:  # what we would build there could be swapped before it is loaded
+        logger.warning("not building native code in %s (%s); using CasADi's VM", out_dir, reason)
+        return None
     built = build_shared_library(source, out_dir, name, cancelled)
     if built is not None:
         try:

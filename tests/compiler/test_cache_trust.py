@@ -211,6 +211,18 @@ def test_standalone_native_cache_checks_the_so_bytes(tmp_path: Path) -> None:
     assert (tmp_path / f"{so.name}.sha256").read_text().strip() == native.file_sha256(so)
 
 
+def test_standalone_native_cache_others_can_write_stays_on_the_vm(tmp_path: Path) -> None:
+    import casadi as ca
+
+    x = ca.SX.sym("x")
+    shared = tmp_path / "shared"
+    shared.mkdir(mode=0o777)
+    shared.chmod(0o777)
+    ev = native.fast_function(ca.Function("thrice", [x], [3 * x]), shared)
+    assert ev.backend == "casadi" and np.asarray(ev(2.0)).item() == 6.0
+    assert list(shared.iterdir()) == []
+
+
 # ---- 2. a corrupted or stale unit is rebuilt, never half-used -----------------------------------
 
 
