@@ -37,15 +37,25 @@ from grace_dsl.cache import build_dir, existing_private_dir, private_dir, untrus
 from grace_dsl.compiler import native
 from grace_dsl.compiler.check import Checked, check
 from grace_dsl.compiler.resolve import Program, resolve
-from grace_dsl.compiler.unit import UNIT_FORMAT, Unit, UnitError, load_unit, seal, verify
+from grace_dsl.compiler.unit import (
+    UNIT_FORMAT,
+    Unit,
+    UnitError,
+    load_unit,
+    read_verified,
+    seal,
+    verify,
+)
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, error, has_errors
 
 __all__ = [
     "UNIT_FORMAT",
     "BuildResult",
+    "Progress",
     "Unit",
     "build",
+    "compiler_fingerprint",
     "default_cache_dir",
     "export_library",
     "front_end",
@@ -159,12 +169,14 @@ class _Store:
             unit_dir = place / "units" / key
             if not unit_dir.exists():
                 continue
-            try:
-                return load_unit(unit_dir)
-            except UnitError as exc:
-                logger.warning("rebuilding a cached unit that failed verification: %s", exc)
-                if place == self.write or place != self.root:
-                    _discard(unit_dir, place / "tmp")
+            reason = verify(unit_dir)
+            if reason is None:
+                with contextlib.suppress(UnitError):
+                    return read_verified(unit_dir)
+                reason = "unit.json is incomplete"
+            logger.warning("rebuilding the cached unit %s: %s", unit_dir, reason)
+            if place == self.write or place != self.root:
+                _discard(unit_dir, place / "tmp")
         return None
 
     def writable(self, diags: list[Diagnostic], n: int) -> Path:

@@ -103,15 +103,23 @@ def load_unit(unit_dir: Path) -> Unit:
     reason = verify(unit_dir)
     if reason is not None:
         raise UnitError(f"{unit_dir}: {reason}; rebuild it with `eacc build`")
+    return read_verified(unit_dir)
+
+
+def read_verified(unit_dir: Path) -> Unit:
+    """The unit in ``unit_dir``, which :func:`verify` has just accepted."""
     data = _json_object(unit_dir / "unit.json")
-    return Unit(
-        data["file"],
-        data["key"],
-        unit_dir,
-        data["concepts"],
-        data.get("source_sha256", ""),
-        data.get("native"),
-    )
+    try:
+        return Unit(
+            str(data["file"]),
+            str(data["key"]),
+            unit_dir,
+            dict(data["concepts"]),
+            str(data.get("source_sha256", "")),
+            data.get("native"),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UnitError(f"{unit_dir}: unit.json is incomplete ({exc}); rebuild it") from None
 
 
 def unit_evaluators(unit: Unit) -> dict[str, native.Evaluator]:
