@@ -149,6 +149,33 @@ def test_corrupted_grammar_tables_are_rebuilt(
         assert rewritten["sha256"] == hashlib.sha256(rewritten["tables"].encode()).hexdigest()
 
 
+def test_stored_grammar_tables_parse_like_fresh_ones(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from grace_dsl.compiler.resolve import stdlib_dir
+    from grace_dsl.lang import grammar_cache, parser
+
+    monkeypatch.setenv("GRACE_CACHE_DIR", str(tmp_path))
+    options = {"parser": "lalr", "lexer": "contextual", "maybe_placeholders": True}
+
+    def parse_all() -> list[object]:
+        builder = parser._Builder("x")
+        lark = grammar_cache.cached_lark(
+            parser.grammar(), {"postlex": parser.DocPostLex(), "transformer": builder}, **options
+        )
+        trees = []
+        for path in sorted(stdlib_dir().glob("*.eac")):
+            builder.path, builder.depth, builder.notes = str(path), {}, []
+            trees.append(lark.parse(path.read_text()))
+        return trees
+
+    fresh = parse_all()
+    (stored,) = (tmp_path / "grammar").glob("*.json")
+    inode = stored.stat().st_ino
+    assert parse_all() == fresh
+    assert stored.stat().st_ino == inode  # read, not rebuilt and replaced
+
+
 @needs_cc
 @pytest.mark.parametrize("poison", ["constructor", "changed_constant", "garbage"])
 def test_a_replaced_so_is_never_loaded(tmp_path: Path, poison: str) -> None:
