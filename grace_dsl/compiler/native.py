@@ -1069,7 +1069,8 @@ def load_native_library(
 
     Returns one :class:`NativeFunction` per function that can be lowered.  Regenerates each
     function's code and compares its digest with the one in the library; raises
-    :class:`ValueError` on mismatch, so a stale library is never used silently.
+    :class:`ValueError` on mismatch, so a stale library is never used silently. ``path`` is
+    loaded as given: trusting it is the caller's decision (see ``grace_dsl.cache``).
     """
     generated = _generate_all(functions)
     return _load(path, {n: functions[n] for n in generated}, generated)
