@@ -35,6 +35,7 @@ import platform
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -48,6 +49,8 @@ import casadi
 import numpy as np
 import numpy.typing as npt
 
+from grace_dsl.cache import cache_dir, untrusted_reason
+
 __all__ = [
     "CasadiEvaluator",
     "Evaluator",
@@ -55,6 +58,9 @@ __all__ = [
     "NativeUnsupportedError",
     "build_native_library",
     "build_shared_library",
+    "file_sha256",
+    "load_unit_library",
+    "toolchain_fingerprint",
     "default_cache_dir",
     "fast_function",
     "fast_functions",
@@ -538,13 +544,8 @@ def _cpu_fingerprint() -> str:
 
 
 def default_cache_dir() -> Path:
-    """``$GRACE_CACHE_DIR/native`` or ``native`` in the per-user cache (beside the builds)."""
-    env = os.environ.get("GRACE_CACHE_DIR")
-    if env:
-        return Path(env) / "native"
-    import platformdirs
-
-    return Path(platformdirs.user_cache_dir("grace-dsl")) / "native"
+    """``native`` under the one cache root (:func:`grace_dsl.cache.cache_dir`)."""
+    return cache_dir() / "native"
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -554,17 +555,61 @@ def _atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _compile(cmd: list[str], flags: Sequence[str], srcs: list[Path], target: Path) -> str | None:
-    """Run one compilation; returns the error text or None on success."""
+class BuildCancelled(Exception):
+    """The caller asked a native build to stop (Ctrl-C during ``eacc build``)."""
+
+
+Cancelled = Callable[[], bool]
+
+
+def _compile(
+    cmd: list[str],
+    flags: Sequence[str],
+    srcs: list[Path],
+    target: Path,
+    cancelled: Cancelled | None = None,
+) -> str | None:
+    """Run one compilation; returns the error text or None on success.
+
+    Polls ``cancelled`` while the compiler runs and kills it when asked, so an interrupted build
+    stops within a fraction of a second instead of finishing a long compilation.
+    """
     argv = [*cmd, *flags, *_LINK_FLAGS, "-o", str(target), *map(str, srcs), "-lm"]
     try:
-        proc = subprocess.run(argv, capture_output=True, text=True, timeout=_COMPILE_TIMEOUT_S)
-    except (OSError, subprocess.SubprocessError) as err:
+        # Its own process group: killing the driver alone would leave cc1 and as running.
+        proc = subprocess.Popen(
+            argv,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+    except OSError as err:
         return str(err)
-    return None if proc.returncode == 0 else (proc.stderr.strip() or f"exit {proc.returncode}")
+    with proc:
+        waited = 0.0
+        while True:
+            try:
+                _, stderr = proc.communicate(timeout=0.1)
+                break
+            except subprocess.TimeoutExpired:
+                waited += 0.1
+                if (cancelled is not None and cancelled()) or waited > _COMPILE_TIMEOUT_S:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.killpg(proc.pid, signal.SIGKILL)
+                    proc.communicate()
+                    if cancelled is not None and cancelled():
+                        raise BuildCancelled(str(target)) from None
+                    return f"timed out after {_COMPILE_TIMEOUT_S:.0f} s"
+    return None if proc.returncode == 0 else (stderr.strip() or f"exit {proc.returncode}")
 
 
-def build_shared_library(sources: Mapping[str, str] | str, out_dir: Path, name: str) -> Path | None:
+def build_shared_library(
+    sources: Mapping[str, str] | str,
+    out_dir: Path,
+    name: str,
+    cancelled: Cancelled | None = None,
+) -> Path | None:
     """Compile C ``sources`` (text, or file name -> text) into ``out_dir/<name>.so``.
 
     Returns ``None`` (and logs why) if no compiler exists or compilation fails, so the caller
@@ -577,55 +622,102 @@ def build_shared_library(sources: Mapping[str, str] | str, out_dir: Path, name: 
         return None
     files = {f"{name}.c": sources} if isinstance(sources, str) else dict(sources)
     try:
-        return _build(cmd, files, out_dir, name)
+        return _build(cmd, files, out_dir, name, cancelled)
     except OSError as err:  # unwritable cache dir, disk full, ...
         logger.warning("native build of %s failed (%s); using CasADi's VM", name, err)
         return None
 
 
-def _build(cmd: list[str], files: dict[str, str], out_dir: Path, name: str) -> Path | None:
+def _build(
+    cmd: list[str], files: dict[str, str], out_dir: Path, name: str, cancelled: Cancelled | None
+) -> Path | None:
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{name}.so"
-    with tempfile.TemporaryDirectory(prefix="grace_native_") as tmp:
+    # Sources beside the target: an interrupted build leaves nothing behind in /tmp.
+    with tempfile.TemporaryDirectory(prefix=".grace_native_", dir=out_dir) as tmp:
         srcs = [Path(tmp) / fname for fname in files]
         for path, text in zip(srcs, files.values(), strict=True):
             path.write_text(text)
         fd, tmp_so = tempfile.mkstemp(dir=out_dir, prefix=f".{name}.", suffix=".so.tmp")
         os.close(fd)
         errors = []
-        for flags in FLAG_TIERS:
-            error = _compile(cmd, flags, srcs, Path(tmp_so))
-            if error is None:
-                os.replace(tmp_so, target)
-                return target
-            errors.append(error)
-        Path(tmp_so).unlink(missing_ok=True)
+        try:
+            for flags in FLAG_TIERS:
+                error = _compile(cmd, flags, srcs, Path(tmp_so), cancelled)
+                if error is None:
+                    os.replace(tmp_so, target)
+                    return target
+                errors.append(error)
+        finally:
+            Path(tmp_so).unlink(missing_ok=True)
     logger.warning("native build of %s failed; using CasADi's VM:\n%s", name, errors[-1][-2000:])
     return None
 
 
-def _library_key(source: str) -> str:
+def toolchain_fingerprint() -> str:
+    """What, besides the C source, decides the bytes of a library: compiler, flags, CPU, ABI."""
     cmd = find_compiler() or ["<none>"]
     parts = [
-        source,
         _compiler_identity(tuple(cmd)),
         repr(FLAG_TIERS),
         repr(_LINK_FLAGS),
         _cpu_fingerprint(),
         str(ABI_VERSION),
     ]
-    return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:24]
+    return "\0".join(parts)
 
 
-def _build_cached(generated: Sequence[_Generated], out_dir: Path | None) -> Path | None:
+def _library_key(source: str) -> str:
+    return hashlib.sha256(f"{source}\0{toolchain_fingerprint()}".encode()).hexdigest()[:24]
+
+
+#: Names of the libraries this module writes (``grace_<key>.so``); nothing else is ever loaded.
+LIBRARY_NAME = re.compile(r"grace_[0-9a-f]{24}\.so\Z")
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _digest_path(library: Path) -> Path:
+    return library.with_name(library.name + ".sha256")
+
+
+def _verified(library: Path) -> bool:
+    """A library may be loaded: private (see grace_dsl.cache) and its bytes match the digest
+    recorded when it was built, so a replaced or rebuilt ``.so`` is never ``dlopen``ed."""
+    try:
+        if untrusted_reason(library) is not None or not library.is_file():
+            return False
+        return _digest_path(library).read_text().strip() == file_sha256(library)
+    except OSError:
+        return False
+
+
+def _build_cached(
+    generated: Sequence[_Generated], out_dir: Path | None, cancelled: Cancelled | None = None
+) -> Path | None:
     source = _PRELUDE + "".join(g.code for g in generated)
     out_dir = default_cache_dir() if out_dir is None else out_dir
     name = f"grace_{_library_key(source)}"
     target = out_dir / f"{name}.so"
-    if target.exists():
+    if _verified(target):
         return target
-    built = build_shared_library(source, out_dir, name)
+    reason = untrusted_reason(out_dir) if out_dir.exists() else None
+    if reason is not None:  # what we would build there could be swapped before it is loaded
+        logger.warning("not building native code in %s (%s); using CasADi's VM", out_dir, reason)
+        return None
+    built = build_shared_library(source, out_dir, name, cancelled)
     if built is not None:
+        try:
+            _atomic_write(_digest_path(built), file_sha256(built) + "\n")
+        except OSError as err:
+            logger.warning("cannot record the digest of %s (%s); using CasADi's VM", built, err)
+            return None
         with contextlib.suppress(OSError):
             _atomic_write(out_dir / f"{name}.c", source)  # kept for inspection only
     return built
@@ -643,7 +735,9 @@ def _generate_all(functions: Mapping[str, casadi.Function]) -> dict[str, _Genera
 
 
 def build_native_library(
-    functions: Mapping[str, casadi.Function], out_dir: Path | None = None
+    functions: Mapping[str, casadi.Function],
+    out_dir: Path | None = None,
+    cancelled: Cancelled | None = None,
 ) -> Path | None:
     """Compile ``functions`` into one cached ``.so`` named by a hash of code, compiler and flags.
 
@@ -652,7 +746,7 @@ def build_native_library(
     Returns ``None`` if nothing can be lowered or compilation is impossible.
     """
     generated = _generate_all(functions)
-    return _build_cached(list(generated.values()), out_dir) if generated else None
+    return _build_cached(list(generated.values()), out_dir, cancelled) if generated else None
 
 
 # --------------------------------------------------------------------------------------------
@@ -975,7 +1069,8 @@ def load_native_library(
 
     Returns one :class:`NativeFunction` per function that can be lowered.  Regenerates each
     function's code and compares its digest with the one in the library; raises
-    :class:`ValueError` on mismatch, so a stale library is never used silently.
+    :class:`ValueError` on mismatch, so a stale library is never used silently. ``path`` is
+    loaded as given: trusting it is the caller's decision (see ``grace_dsl.cache``).
     """
     generated = _generate_all(functions)
     return _load(path, {n: functions[n] for n in generated}, generated)
@@ -994,10 +1089,30 @@ def fast_functions(
     path = _build_cached(list(generated.values()), cache_dir) if generated else None
     if path is None:
         return result
+    if not _verified(path):
+        logger.warning("not loading %s: %s", path, untrusted_reason(path) or "digest mismatch")
+        return result
     try:
         result.update(_load(path, {n: functions[n] for n in generated}, generated))
     except (OSError, ValueError) as err:
         logger.warning("cannot load %s (%s); using CasADi's VM", path, err)
+    return result
+
+
+def load_unit_library(path: Path, functions: Mapping[str, casadi.Function]) -> dict[str, Evaluator]:
+    """Evaluators for a unit's functions: its library's kernels, CasADi's VM for the rest.
+
+    The caller has checked the library's bytes and ownership. A library built for another
+    compiler or CPU (an artifact copied between machines) is not loaded: ``-march=native`` code
+    may not run here.
+    """
+    result: dict[str, Evaluator] = {n: CasadiEvaluator(f) for n, f in functions.items()}
+    generated = _generate_all(functions)
+    source = _PRELUDE + "".join(g.code for g in generated.values())
+    if path.name != f"grace_{_library_key(source)}.so":
+        logger.warning("%s was built by another compiler or CPU; using CasADi's VM", path)
+        return result
+    result.update(_load(path, {n: functions[n] for n in generated}, generated))
     return result
 
 

@@ -69,4 +69,5 @@ CODES: dict[str, str] = {
     "E232": "unknown grasp mode",
     # build and I/O
     "E301": "cache or output directory not writable",
+    "E302": "cache directory not private",
 }

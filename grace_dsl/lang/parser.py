@@ -9,23 +9,21 @@ reports the errors of many declarations and still hands the rest of the file to 
 from __future__ import annotations
 
 import math
-import os
 import re
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
-from pathlib import Path
 from typing import Any
 
-import platformdirs
 from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 from lark.lark import PostLex
 
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, error
+from grace_dsl.lang.grammar_cache import cached_lark
 
 MAX_DEPTH = 64
 MAX_RECOVERIES = 25
@@ -128,27 +126,14 @@ class _BadNumber(Exception):
 @lru_cache(maxsize=1)
 def _parser() -> tuple[Lark, _Builder]:
     builder = _Builder("<string>")
-    lark = Lark(
+    lark = cached_lark(
         grammar(),
+        {"postlex": DocPostLex(), "transformer": builder},
         parser="lalr",
         lexer="contextual",
-        postlex=DocPostLex(),
-        transformer=builder,
         maybe_placeholders=True,
-        cache=_table_cache(),
     )
     return lark, builder
-
-
-def _table_cache() -> str | bool:
-    """Where lark keeps the LALR tables between runs (it checks the grammar's hash itself);
-    building them costs a few hundred milliseconds at every start otherwise."""
-    root = os.environ.get("GRACE_CACHE_DIR") or platformdirs.user_cache_dir("grace-dsl")
-    try:
-        Path(root).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return False
-    return str(Path(root) / "eac-grammar.lark-cache")
 
 
 _PARSE_LOCK = threading.Lock()

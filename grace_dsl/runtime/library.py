@@ -12,11 +12,10 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-import casadi as ca
 import numpy as np
 
-from grace_dsl.compiler import native
-from grace_dsl.compiler.build import BuildResult, Progress, Unit, build, load_unit
+from grace_dsl.compiler.build import BuildResult, Progress, build
+from grace_dsl.compiler.unit import KEY, UNIT_FORMAT, Unit, UnitError, load_unit, unit_evaluators
 from grace_dsl.lang.diagnostics import render_all
 from grace_dsl.runtime.concept import ParamPacker, ParamSpec, suggest
 from grace_dsl.runtime.errors import CompileError, UnknownNameError
@@ -32,9 +31,7 @@ class _UnitFunctions:
 
     def get(self, name: str) -> Any:
         if self._evaluators is None:
-            data = json.loads((self.unit.dir / "functions.json").read_text())
-            fns = {n: ca.Function.deserialize(s) for n, s in data.items()}
-            self._evaluators = dict(native.fast_functions(fns, self.unit.dir))
+            self._evaluators = dict(unit_evaluators(self.unit))
         return self._evaluators[name]
 
 
@@ -143,7 +140,35 @@ def load_library(cache_dir: Path | None = None, progress: Progress | None = None
 
 
 def load_artifact(directory: str | Path) -> Library:
-    """A library from an artifact directory written by ``eacc build -o DIR``."""
-    root = Path(directory)
-    manifest = json.loads((root / "manifest.json").read_text())
-    return Library([load_unit(root / "units" / key) for key in manifest["units"]])
+    """A library from an artifact directory written by ``eacc build -o DIR``.
+
+    Loading an artifact runs its native code, so it is checked like the cache: its manifest's
+    format, unit names that are keys (no ``../``) resolving inside ``DIR/units``, every unit
+    private and intact (``grace_dsl.compiler.unit.verify``). Raises ``UnitError`` otherwise.
+    """
+    root = Path(directory).resolve()
+    try:
+        manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise UnitError(f"{root}: no readable manifest.json ({exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != UNIT_FORMAT:
+        found = manifest.get("format") if isinstance(manifest, dict) else None
+        raise UnitError(
+            f"{root}: artifact format {found!r}, this grace_dsl reads {UNIT_FORMAT}; "
+            "rebuild it with `eacc build -o`"
+        )
+    keys = manifest.get("units")
+    if not isinstance(keys, dict):
+        raise UnitError(f"{root}: manifest.json lists no units")
+    return Library([load_unit(_unit_dir(root, key)) for key in keys])
+
+
+def _unit_dir(root: Path, key: object) -> Path:
+    """``root/units/key``, refused unless ``key`` is a unit key that stays inside ``root``."""
+    units = root / "units"
+    if not isinstance(key, str) or not KEY.match(key):
+        raise UnitError(f"{root}: manifest.json names a unit {key!r} that is not a unit key")
+    unit_dir = (units / key).resolve()
+    if unit_dir.parent != units.resolve():
+        raise UnitError(f"{root}: unit {key} lies outside the artifact ({unit_dir})")
+    return unit_dir
