@@ -114,9 +114,7 @@ class Kinematics:
         """The world poses of every link (L, 4, 4), in :attr:`links` order; for a batch of
         joint vectors (N, J), (N, L, 4, 4)."""
         qs, batched = self._joints(q)
-        poses = [
-            self._eval(self._fn("link", link), batched, self.p, qs)[0] for link in self.links
-        ]
+        poses = [self._eval(self._fn("link", link), batched, self.p, qs)[0] for link in self.links]
         return self._place(np.stack(poses, axis=-3))
 
     def joint_axes(self, q: Any = None) -> JointAxes:
@@ -210,7 +208,9 @@ class Kinematics:
         if q is None:
             return self.q, False
         if isinstance(q, Mapping):
-            return self._vector_from_mapping("moving joint", self.joints, q, self.q), False
+            return self._vector_from_mapping(
+                f"{self.concept.name} has no moving joint", self.joints, q, self.q
+            ), False
         return _vector_or_batch("q", q, len(self.joints), "the moving joints " + _list(self.joints))
 
     def _joints_and_free(self, grasp: str, q: Any, g: Any) -> tuple[FloatArray, FloatArray, bool]:
@@ -218,7 +218,7 @@ class Kinematics:
         names = self.free_parameters(grasp)
         if g is None or isinstance(g, Mapping):
             default = self.grasp_range(grasp)[2]
-            what = f"free parameter of grasp {grasp}:"
+            what = f"grasp {grasp} has no free parameter"
             gs = default if g is None else self._vector_from_mapping(what, names, g, default)
             return qs, gs, q_batched
         gs, g_batched = _vector_or_batch("g", g, len(names), f"{grasp}'s free parameters")
@@ -232,13 +232,13 @@ class Kinematics:
     def _vector_from_mapping(
         self, what: str, names: Sequence[str], values: Mapping[str, Any], default: FloatArray
     ) -> FloatArray:
-        """``default`` with the entries named in ``values`` replaced (unknown names raise)."""
+        """``default`` with the entries named in ``values`` replaced; an unknown name raises
+        ``what`` followed by the name."""
         out = np.array(default, dtype=np.float64)
         for key, value in values.items():
             if key not in names:
                 raise UnknownNameError(
-                    f"{self.concept.name}: no {what} {key!r}"
-                    + suggest(str(key), list(names) or ["(none)"])
+                    f"{what} {key!r}" + suggest(str(key), list(names) or ["(none)"])
                 )
             out[list(names).index(key)] = _number(key, value)
         return out
