@@ -25,7 +25,7 @@ one native call, and the result gets a leading axis N.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -76,6 +76,10 @@ class Kinematics:
             return Kinematics(source.concept, source.p, world, source.q)
         p = source.pack()
         return Kinematics(source, p, _world_pose(pose), np.zeros(len(source.moving_joints)))
+
+    def in_concept_frame(self) -> Kinematics:
+        """The same kinematics with world = the concept frame (what exported models use)."""
+        return replace(self, pose=np.eye(4))
 
     # -- structure
     @property
