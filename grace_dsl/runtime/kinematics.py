@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -173,7 +173,7 @@ class Kinematics:
 
     # -- helpers
     def _fn(self, kind: str, name: str = "") -> Evaluator:
-        return cast(Evaluator, self.concept.function(kind, name))
+        return self.concept.function(kind, name)
 
     def _eval(self, fn: Evaluator, batched: bool, *args: FloatArray) -> tuple[FloatArray, ...]:
         if batched:
