@@ -20,6 +20,7 @@ from typing import Any
 
 import casadi as ca
 
+from grace_dsl import tolerances
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import CASADI
 from grace_dsl.compiler.check import Checked
@@ -182,7 +183,7 @@ def _add_world_queries(low: Lowered, p: Any, q: Any, add: Add) -> None:
         )
 
 
-AXIS_TOLERANCE = 1e-6  # metres (times the axis' unit length)
+AXIS_TOLERANCE = tolerances.ON_AXIS  # metres (times the axis' unit length)
 _NAN = float("nan")
 
 
