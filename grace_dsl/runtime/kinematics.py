@@ -55,7 +55,7 @@ class JointAxes:
     origins: FloatArray
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Kinematics:
     """A concept's kinematics at parameter vector ``p``, placed at ``pose`` (world <- concept);
     ``q`` is the default joint vector (the instance's, or the closed state)."""
