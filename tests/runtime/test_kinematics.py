@@ -182,3 +182,51 @@ def test_bad_input_is_a_typed_error(lib, call, error, words) -> None:  # type: i
     with pytest.raises(error, match=None) as info:
         call(kin)
     assert words in str(info.value)
+
+
+def test_twist_jacobian_of_a_closed_form_pose() -> None:
+    """rotz(x) trans(a, 0, 0) with a = 2: the origin moves as a (-sin x, cos x, 0), the frame
+    turns about z; y enters through trans(0, y, 0) only: linear (-sin x, cos x, 0)."""
+    import casadi as ca
+
+    from grace_dsl.compiler.functions import twist_jacobian
+
+    x = ca.SX.sym("x", 2)
+    c, s = ca.cos(x[0]), ca.sin(x[0])
+    rot = ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
+    t = ca.mtimes(rot, ca.vertcat(2, x[1], 0))
+    pose = ca.vertcat(ca.horzcat(rot, t), ca.horzcat(0, 0, 0, 1))
+    fn = ca.Function("j", [x], [twist_jacobian(pose, x)])
+    a, y = 0.7, 0.3
+    expected = [
+        [-2 * np.sin(a) - y * np.cos(a), -np.sin(a)],
+        [2 * np.cos(a) - y * np.sin(a), np.cos(a)],
+        [0, 0],
+        [0, 0],
+        [0, 0],
+        [1, 0],
+    ]
+    np.testing.assert_allclose(fn([a, y]).full(), expected, atol=1e-15)
+
+
+def test_native_and_casadi_jacobians_agree(lib) -> None:  # type: ignore[no-untyped-def]
+    """The compiled grasp_jac kernel against CasADi's VM on the same serialized function."""
+    import json
+
+    import casadi as ca
+
+    from grace_dsl.compiler import native
+
+    if native.find_compiler() is None:
+        pytest.skip("no C compiler: every function runs on CasADi's VM")
+    concept = lib["RoomDoor"]
+    inst = random_instance(concept, 9)
+    compiled = concept.function("grasp_jac", "handle.hold")
+    assert compiled.backend == "native"
+    unit = concept._functions.unit  # the serialized function the kernel was generated from
+    data = json.loads((unit.dir / "functions.json").read_text())
+    key = concept.entry["functions"]["grasp_jac:handle.hold"]
+    vm = native.CasadiEvaluator(ca.Function.deserialize(data[key]))
+    g = np.array([0.01])
+    for got, want in zip(compiled(inst.p, inst.q, g), vm(inst.p, inst.q, g)):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)
