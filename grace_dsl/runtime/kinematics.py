@@ -125,8 +125,7 @@ class Kinematics:
         """The moving joints' axes (unit, opening sense) and points on them, in the world."""
         qs, batched = self._joints(q)
         axes, origins = self._eval(self._fn("joint_axes"), batched, self.p, qs)
-        n = qs.shape[0] if batched else None
-        shape = (-1, 3) if n is None else (n, -1, 3)
+        shape = (len(self.joints), 3) if not batched else (qs.shape[0], len(self.joints), 3)
         axes, origins = axes.reshape(shape), origins.reshape(shape)
         axes = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
         rot, origin = self.pose[:3, :3], self.pose[:3, 3]

@@ -134,6 +134,9 @@ def test_batches_agree_with_single_calls(lib) -> None:  # type: ignore[no-untype
     axes = kin.joint_axes(qs)
     assert axes.axes.shape == axes.origins.shape == (5, lo.size, 3)
     np.testing.assert_allclose(axes.axes[2], kin.joint_axes(qs[2]).axes, atol=1e-12)
+    none = np.zeros((0, lo.size))
+    assert kin.link_poses(none).shape == (0, len(kin.links), 4, 4)
+    assert kin.joint_axes(none).axes.shape == (0, lo.size, 3)
 
 
 def test_a_single_configuration_of_a_one_joint_concept_stays_a_batch(lib) -> None:  # type: ignore[no-untyped-def]
