@@ -70,10 +70,15 @@ class Kinematics:
         """The kinematics of an instance (its parameters, pose and joint values), or of a
         concept at its default parameters, closed, at ``pose`` (default: the concept frame)."""
         from grace_dsl.runtime.instance import Instance
+        from grace_dsl.runtime.library import Concept
 
         if isinstance(source, Instance):
             world = source.pose if pose is None else _world_pose(pose)
             return Kinematics(source.concept, source.p, world, source.q)
+        if not isinstance(source, Concept):
+            raise ParameterError(
+                f"Kinematics.of takes an Instance or a Concept, not {type(source).__name__}"
+            )
         p = source.pack()
         return Kinematics(source, p, _world_pose(pose), np.zeros(len(source.moving_joints)))
 

@@ -178,6 +178,7 @@ def test_kinematics_of_a_concept_is_closed_at_defaults(lib) -> None:  # type: ig
             "2 and 3",
         ),
         (lambda k: Kinematics.of(k.concept, np.ones((4, 4))), eac.ParameterError, "rigid"),
+        (lambda k: Kinematics.of("SunkenDoor"), eac.ParameterError, "not str"),
     ],
 )
 def test_bad_input_is_a_typed_error(lib, call, error, words) -> None:  # type: ignore[no-untyped-def]
