@@ -50,6 +50,7 @@ import numpy as np
 import numpy.typing as npt
 
 from grace_dsl.cache import cache_dir, untrusted_reason
+from grace_dsl.errors import GraceError
 
 __all__ = [
     "CasadiEvaluator",
@@ -98,7 +99,7 @@ _LINK_FLAGS = ("-shared", "-fPIC", "-pthread")
 _COMPILE_TIMEOUT_S = 600.0
 
 
-class NativeUnsupportedError(ValueError):
+class NativeUnsupportedError(GraceError, ValueError):
     """A function cannot be lowered to C (unknown op, free variables, non-SX); use CasADi."""
 
 
