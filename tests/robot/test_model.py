@@ -20,8 +20,9 @@ def panda() -> Robot:
 
 def _origin(joint: ET.Element) -> np.ndarray:
     origin = joint.find("origin")
-    xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-    rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+    attrs = origin.attrib if origin is not None else {}
+    xyz = [float(v) for v in attrs.get("xyz", "0 0 0").split()]
+    rpy = [float(v) for v in attrs.get("rpy", "0 0 0").split()]
     m = np.eye(4)
     m[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()  # URDF: fixed-axis roll, pitch, yaw
     m[:3, 3] = xyz
