@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -87,9 +87,9 @@ def solve_ik(
     q = robot.home.copy() if q0 is None else robot.check_q(q0).copy()
     best: tuple[float, FloatArray] = (math.inf, q.copy())
     iterations = 0
-    solver = _Stepper(robot, opts)
+    problem, qp = _PoseProblem(robot, goal, opts), thread_qp(robot, robot.nq)
     for attempt in range(opts.max_restarts + 1):
-        q, used, score = solver.descend(q, goal)
+        q, used, score = descend(problem, q, opts, qp)
         iterations += used
         if score < best[0]:
             best = (score, q.copy())
@@ -101,58 +101,75 @@ def solve_ik(
     return _result(robot, goal, best[1], iterations, opts.max_restarts, start, "unreachable", opts)
 
 
-class _Stepper:
-    """The damped Gauss–Newton QP iteration of one attempt, with its reused workspaces."""
+class Linearized(Protocol):
+    """A least-squares problem in ``x`` within ``lower``/``upper``: ``linearize(x)`` gives the
+    error twist ``e``, its Jacobian ``de/dx`` and a score that is <= 1 within tolerance."""
 
-    def __init__(self, robot: Robot, opts: IKOptions):
-        self.robot, self.opts = robot, opts
-        self.model, self.data = robot.model, robot.data()
-        self.qp = _thread_qp(robot)
-        self.eye = np.eye(robot.nq)
+    lower: FloatArray
+    upper: FloatArray
 
-    def error(self, q: FloatArray, goal: pin.SE3) -> tuple[pin.SE3, FloatArray, float]:
-        """The current pose's error to ``goal``: (T⁻¹T*, log twist, score ≤ 1 when within tol)."""
-        pin.framesForwardKinematics(self.model, self.data, q)
-        now = self.data.oMf[self.robot.tcp_frame]
-        diff = now.actInv(goal)
+    def linearize(self, x: FloatArray) -> tuple[FloatArray, FloatArray, float]: ...
+
+
+@dataclass
+class _PoseProblem:
+    """The gripper frame of ``robot`` onto the fixed pose ``goal``: x = q."""
+
+    robot: Robot
+    goal: pin.SE3
+    opts: IKOptions
+
+    def __post_init__(self) -> None:
+        self.lower, self.upper = self.robot.lower, self.robot.upper
+        self.model, self.data = self.robot.model, self.robot.data()
+
+    def linearize(self, x: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+        frame = self.robot.tcp_frame
+        pin.computeJointJacobians(self.model, self.data, x)  # also the joints' placements
+        now = pin.updateFramePlacement(self.model, self.data, frame)
+        jac = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
+        diff = now.actInv(self.goal)
         err = pin.log6(diff).vector
-        pos = float(np.linalg.norm(goal.translation - now.translation))
-        rot = float(np.linalg.norm(err[3:]))
-        return diff, err, max(pos / self.opts.tol_pos, rot / self.opts.tol_rot)
-
-    def descend(self, q: FloatArray, goal: pin.SE3) -> tuple[FloatArray, int, float]:
-        """Iterate from ``q`` until within 1/10 of the tolerance, stalled or out of iterations."""
-        opts, lo, hi = self.opts, self.robot.lower, self.robot.upper
-        diff, err, score = self.error(q, goal)
-        if score <= 0.1:
-            return q, 0, score
-        history = [score]
-        for it in range(1, opts.max_iterations + 1):
-            jac = pin.computeFrameJacobian(self.model, self.data, q, self.robot.tcp_frame)
-            j_err = -pin.Jlog6(diff.inverse()) @ jac
-            lam = opts.damping + opts.damping_error * float(err @ err)
-            p = j_err.T @ j_err + lam * self.eye
-            c = j_err.T @ err
-            step = -np.linalg.solve(p, c)
-            if not (np.all(q + step >= lo) and np.all(q + step <= hi)):
-                step = self.qp.solve(p, c, lo - q, hi - q)  # a joint limit binds
-            largest = float(np.max(np.abs(step)))
-            if largest > opts.trust_region:  # far from the goal the linearization is poor
-                step *= opts.trust_region / largest
-            q = np.clip(q + step, lo, hi)
-            diff, err, score = self.error(q, goal)
-            history.append(score)
-            if score <= 0.1 or _stalled(history):
-                return q, it, score
-        return q, opts.max_iterations, score
+        pos = float(np.linalg.norm(self.goal.translation - now.translation))
+        score = max(pos / self.opts.tol_pos, float(np.linalg.norm(err[3:])) / self.opts.tol_rot)
+        return err, -pin.Jlog6(diff.inverse()) @ jac, score
 
 
-def _thread_qp(robot: Robot) -> BoxQP:
-    """One OSQP workspace per robot and thread: its setup costs far more than a solve."""
-    qp = getattr(robot._local, "qp", None)
-    if qp is None:
-        qp = robot._local.qp = BoxQP(robot.nq)
-    return qp
+def descend(
+    problem: Linearized, x: FloatArray, opts: IKOptions, qp: BoxQP
+) -> tuple[FloatArray, int, float]:
+    """Damped Gauss-Newton QP steps from ``x`` until within 1/10 of the tolerance, stalled or out
+    of iterations; returns (x, iterations, score)."""
+    lo, hi = problem.lower, problem.upper
+    eye = np.eye(len(x))
+    err, j_err, score = problem.linearize(x)
+    if score <= 0.1:
+        return x, 0, score
+    history = [score]
+    for it in range(1, opts.max_iterations + 1):
+        lam = opts.damping + opts.damping_error * float(err @ err)
+        p = j_err.T @ j_err + lam * eye
+        c = j_err.T @ err
+        step = -np.linalg.solve(p, c)
+        if not (np.all(x + step >= lo) and np.all(x + step <= hi)):
+            step = qp.solve(p, c, lo - x, hi - x)  # a limit binds
+        largest = float(np.max(np.abs(step)))
+        if largest > opts.trust_region:  # far from the goal the linearization is poor
+            step *= opts.trust_region / largest
+        x = np.clip(x + step, lo, hi)
+        err, j_err, score = problem.linearize(x)
+        history.append(score)
+        if score <= 0.1 or _stalled(history):
+            return x, it, score
+    return x, opts.max_iterations, score
+
+
+def thread_qp(robot: Robot, n: int) -> BoxQP:
+    """One OSQP workspace per robot, size and thread: its setup costs far more than a solve."""
+    cache = robot._local.__dict__.setdefault("qp", {})
+    if n not in cache:
+        cache[n] = BoxQP(n)
+    return cache[n]
 
 
 def _stalled(history: list[float], window: int = 8) -> bool:
