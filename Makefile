@@ -17,7 +17,7 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check grace_dsl tests bench
-	$(BIN)/mypy grace_dsl/lang grace_dsl/compiler
+	$(BIN)/mypy grace_dsl
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_eval.py

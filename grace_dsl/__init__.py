@@ -15,6 +15,7 @@ from grace_dsl.runtime.errors import (
 )
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.kinematics import JointAxes, Kinematics
 from grace_dsl.runtime.library import Concept, Library, compile_paths, load_artifact, load_library
 from grace_dsl.runtime.manipulation import Option
 
@@ -26,6 +27,8 @@ __all__ = [
     "GraceError",
     "Gripper",
     "Instance",
+    "JointAxes",
+    "Kinematics",
     "Library",
     "Option",
     "ParameterError",

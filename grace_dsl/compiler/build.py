@@ -137,6 +137,7 @@ def compiler_fingerprint() -> str:
         for path in sorted((root / sub).glob("*.py")) + sorted((root / sub).glob("*.lark")):
             h.update(path.name.encode())
             h.update(path.read_bytes())
+    h.update((root / "tolerances.py").read_bytes())  # compiled code holds some of its values
     return h.hexdigest()
 
 

@@ -4,6 +4,12 @@ Every function takes the flat parameter vector ``p`` (SI units, in the order of 
 parameters), and where relevant the joint values ``q``, the free grasp parameters ``g`` or a point
 ``x``.  Functions are keyed ``grasp:handle.pull``; their CasADi names are plain identifiers
 (``f3_grasp``) so they can become C symbols.
+
+``link_jac:NAME(p, q)`` and ``grasp_jac:NAME(p, q, g)`` return a pose ``T`` together with its
+twist Jacobian ``J`` (6 x (nq [+ ng])), exact derivatives of the same SX graph: rows
+``[v; w]`` with ``v = dt/dx`` the velocity of the frame's origin and ``w`` its angular velocity
+(``dR/dx_i = [w_i]x R``), both along the concept frame's axes.  Robot IK solves in joints and
+free grasp parameters with them (``grace_dsl.runtime.kinematics``).
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from typing import Any
 
 import casadi as ca
 
+from grace_dsl import tolerances
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import CASADI
 from grace_dsl.compiler.check import Checked
@@ -60,10 +67,22 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
         )
 
     for link, pose in low.links.items():
-        add(fn_key("link", link), [("p", p), ("q", q)], [("T", _mat(pose))])
+        t_link = _mat(pose)
+        add(fn_key("link", link), [("p", p), ("q", q)], [("T", t_link)])
+        add(
+            fn_key("link_jac", link),
+            [("p", p), ("q", q)],
+            [("T", t_link), ("J", twist_jacobian(t_link, q))],
+        )
     for gname, g in low.grasps.items():
         gv = _column(list(g.symbols), "g")
-        add(fn_key("grasp", gname), [("p", p), ("q", q), ("g", gv)], [("T", _mat(g.pose))])
+        t_grasp = _mat(g.pose)
+        add(fn_key("grasp", gname), [("p", p), ("q", q), ("g", gv)], [("T", t_grasp)])
+        add(
+            fn_key("grasp_jac", gname),
+            [("p", p), ("q", q), ("g", gv)],
+            [("T", t_grasp), ("J", twist_jacobian(t_grasp, ca.vertcat(q, gv)))],
+        )
         add(
             fn_key("grasp_range", gname),
             [("p", p)],
@@ -108,6 +127,23 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
     return Compiled(low, fns)
 
 
+def twist_jacobian(pose: Any, x: Any) -> Any:
+    """The 6 x n twist Jacobian of a 4x4 SX pose in the variables ``x``: rows ``[v; w]``, with
+    ``v`` the derivative of the origin and ``w`` the angular velocity, ``[w]x = dR/dx R^T``
+    (its antisymmetric part, so rounding in R cannot make it lopsided)."""
+    rot, origin = pose[:3, :3], pose[:3, 3]
+    n = x.numel()
+    d_rot = ca.jacobian(ca.vec(rot), x)  # column-major: entry (r, c) at row r + 3 c
+    columns = []
+    for i in range(n):
+        w = ca.mtimes(ca.reshape(d_rot[:, i], 3, 3), rot.T)
+        columns.append(
+            ca.vertcat((w[2, 1] - w[1, 2]) / 2, (w[0, 2] - w[2, 0]) / 2, (w[1, 0] - w[0, 1]) / 2)
+        )
+    angular = ca.horzcat(*columns) if columns else ca.SX(3, 0)
+    return ca.vertcat(ca.jacobian(origin, x), angular)
+
+
 Add = Callable[[str, list[tuple[str, Any]], list[tuple[str, Any]]], None]
 
 
@@ -147,7 +183,7 @@ def _add_world_queries(low: Lowered, p: Any, q: Any, add: Add) -> None:
         )
 
 
-AXIS_TOLERANCE = 1e-6  # metres (times the axis' unit length)
+AXIS_TOLERANCE = tolerances.ON_AXIS  # metres (times the axis' unit length)
 _NAN = float("nan")
 
 

@@ -48,6 +48,8 @@ import casadi
 import numpy as np
 import numpy.typing as npt
 
+from grace_dsl.errors import GraceError
+
 __all__ = [
     "CasadiEvaluator",
     "Evaluator",
@@ -92,7 +94,7 @@ _LINK_FLAGS = ("-shared", "-fPIC", "-pthread")
 _COMPILE_TIMEOUT_S = 600.0
 
 
-class NativeUnsupportedError(ValueError):
+class NativeUnsupportedError(GraceError, ValueError):
     """A function cannot be lowered to C (unknown op, free variables, non-SX); use CasADi."""
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from grace_dsl.export.shapes import Geom
 from grace_dsl.runtime.errors import GraceError
+from grace_dsl.tolerances import DEGENERATE
 
 
 class ExportPathError(GraceError):
@@ -44,7 +45,7 @@ def vec(values: Iterable[float]) -> str:
 def rpy(r: np.ndarray) -> tuple[float, float, float]:
     """URDF's roll, pitch, yaw of a rotation matrix: R = Rz(yaw) Ry(pitch) Rx(roll)."""
     pitch = math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))
-    if math.hypot(r[0, 0], r[1, 0]) > 1e-9:
+    if math.hypot(r[0, 0], r[1, 0]) > DEGENERATE:
         return math.atan2(r[2, 1], r[2, 2]), pitch, math.atan2(r[1, 0], r[0, 0])
     return 0.0, pitch, math.atan2(-r[0, 1], r[1, 1])  # gimbal lock: only yaw - roll is defined
 

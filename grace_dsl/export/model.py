@@ -20,6 +20,7 @@ import numpy as np
 import trimesh
 
 from grace_dsl.export.shapes import Geom, link_geoms
+from grace_dsl.runtime.kinematics import Kinematics
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -117,9 +118,12 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
     """The exported rigid-body model of ``inst`` (parameters fixed, joints free)."""
     opts = options or ExportOptions()
     concept = inst.concept
+    kin = Kinematics.of(inst).in_concept_frame()
     q0 = np.zeros_like(inst.q)
-    axes, origins = (np.asarray(x, dtype=float).reshape(-1, 3) for x in _joint_axes(inst, q0))
-    lo, hi = (np.atleast_1d(np.asarray(x, dtype=float)).reshape(-1) for x in _limits(inst))
+    at_rest = kin.joint_axes(q0)  # unit axes and their origins, concept frame, closed
+    axes, origins = at_rest.axes, at_rest.origins
+    lo, hi = kin.joint_limits()
+    rest = dict(zip(kin.links, kin.link_poses(q0)))
     joints = concept.entry["joints"]
     root = _root(concept.links, joints)
     order = _depth_first(root, joints)
@@ -133,7 +137,7 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
         names[src] = sanitize(src, taken)
     warnings: list[str] = []
     links = tuple(
-        _link(inst, src, names[src], link_origin[src], q0, opts, warnings) for src in names
+        _link(inst, src, names[src], link_origin[src], rest[src], opts, warnings) for src in names
     )
     out_joints = tuple(
         _joint(j, names, link_origin, axes, lo, hi, inst.q, opts, taken) for j in order
@@ -141,14 +145,6 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
     for w in warnings:
         log.warning("%s: %s", concept.name, w)
     return ExportModel(concept.name, inst.pose.copy(), links, out_joints, tuple(warnings))
-
-
-def _joint_axes(inst: Instance, q: np.ndarray) -> Any:
-    return inst.concept.function("joint_axes")(inst.p, q)
-
-
-def _limits(inst: Instance) -> Any:
-    return inst.concept.function("joint_limits")(inst.p)
 
 
 def _root(links: tuple[str, ...], joints: list[Mapping[str, Any]]) -> str:
@@ -181,11 +177,12 @@ def _link(
     src: str,
     name: str,
     origin: np.ndarray,
-    q0: np.ndarray,
+    rest: np.ndarray,
     opts: ExportOptions,
     warnings: list[str],
 ) -> Link:
-    rest = np.asarray(inst.concept.function("link", src)(inst.p, q0), dtype=float)
+    """The exported link ``src``; ``rest`` is its runtime pose (concept frame) with the joints
+    closed."""
     offset = np.linalg.solve(rest, _translation(origin))
     frame = _translation(origin)  # the exported frame in the concept frame at q = 0
     geoms = link_geoms(inst, src, frame, opts.resolution, warnings)
@@ -211,7 +208,7 @@ def _joint(
     if i is None:
         axis, low, high, value = np.zeros(3), None, None, 0.0
     else:
-        axis = axes[i] / np.linalg.norm(axes[i])
+        axis = axes[i].copy()  # unit: Kinematics.joint_axes normalizes
         low = float(lo[i]) if np.isfinite(lo[i]) else None
         high = float(hi[i]) if np.isfinite(hi[i]) else None
         value = float(q[i])

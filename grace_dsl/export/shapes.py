@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from grace_dsl.runtime.shapes import ShapeTree
+from grace_dsl.tolerances import DEGENERATE, EXACT
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -47,7 +48,7 @@ class Geom:
             return "sphere", (float(p["radius"]),)
         if self.primitive == "SphericalCap" and float(p["height"]) >= 2 * float(p["radius"]):
             return "sphere", (float(p["radius"]),)
-        if self.primitive == "Cylinder" and float(p["radian"]) >= FULL_TURN - 1e-9:
+        if self.primitive == "Cylinder" and float(p["radian"]) >= FULL_TURN - DEGENERATE:
             return "cylinder", (float(p["radius"]), float(p["height"]))
         if self.primitive == "Capsule":
             return "capsule", (float(p["radius"]), float(p["length"]))
@@ -59,7 +60,7 @@ class Geom:
 
 def _untapered(p: Mapping[str, Any]) -> bool:
     size, top, offset = (np.asarray(p[k], dtype=float) for k in ("size", "top", "offset"))
-    return bool(np.allclose(top, size[[0, 2]], rtol=1e-12, atol=0) and not np.any(offset))
+    return bool(np.allclose(top, size[[0, 2]], rtol=EXACT, atol=0) and not np.any(offset))
 
 
 def link_geoms(

@@ -22,6 +22,7 @@ from grace_dsl.export.model import ExportModel
 from grace_dsl.render import style
 from grace_dsl.render.camera import View
 from grace_dsl.render.scene import Scene, Segment
+from grace_dsl.tolerances import DEGENERATE
 
 CAMERA = "view"
 DECORATION = "deco"  # the name prefix of decoration geoms
@@ -186,7 +187,7 @@ def _draw_segments(root: ET.Element, segments: tuple[Segment, ...]) -> None:
     for i, seg in enumerate(segments):
         start, end = np.array(seg.start), np.array(seg.end)
         length = float(np.linalg.norm(end - start))
-        if length < 1e-9:
+        if length < DEGENERATE:
             continue
         d = (end - start) / length
         material = "deco_" + style.hex_color(seg.color)[1:]

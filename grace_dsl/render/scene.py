@@ -15,6 +15,7 @@ import numpy as np
 
 from grace_dsl.render import style
 from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.kinematics import Kinematics
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -263,14 +264,11 @@ def _joint_axes(inst: Instance, draft: Scene) -> list[JointAxis]:
     concept = inst.concept
     if not concept.moving_joints:
         return []
-    axes, origins = concept.function("joint_axes")(inst.p, inst.q)
-    axes = np.asarray(axes, dtype=float).reshape(-1, 3)
-    origins = np.asarray(origins, dtype=float).reshape(-1, 3)
+    world = Kinematics.of(inst).joint_axes()  # unit axes and points on them, in the world
     size, out = draft.size, []
-    for i, name in enumerate(concept.moving_joints):
+    for i, name in enumerate(world.names):
         joint = concept.joints[name]
-        d = inst.pose[:3, :3] @ (axes[i] / np.linalg.norm(axes[i]))
-        o = inst.pose[:3, :3] @ origins[i] + inst.pose[:3, 3]
+        d, o = world.axes[i], world.origins[i]
         moved = set(_subtree(joint["child"], concept.joints))
         pts = [p.vertices for p in draft.parts if p.link in moved]
         along = (np.concatenate(pts) - o) @ d if pts else np.zeros(1)

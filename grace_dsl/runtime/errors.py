@@ -1,12 +1,22 @@
-"""Typed errors of the runtime: each says what was wrong and what to do about it."""
+"""Typed errors of the runtime: each says what was wrong and what to do about it.
+
+``GraceError``, their base, lives in :mod:`grace_dsl.errors` (below every layer) and is re-exported
+here.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+from grace_dsl.errors import GraceError
 
-class GraceError(Exception):
-    """Base of every error grace_dsl raises on purpose."""
+__all__ = [
+    "CompileError",
+    "GraceError",
+    "ParameterError",
+    "RequirementError",
+    "UnknownNameError",
+]
 
 
 class CompileError(GraceError):

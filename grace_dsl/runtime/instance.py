@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -303,8 +303,8 @@ class Instance:
                 f"use inst.twist({action!r})"
             )
         point = _pose(grasp)[:3, 3]  # R f(R^T (t - t_M)) in one native call
-        f = self.concept.function("force", action)(self.p, self.q, self.pose[:3], point)
-        f = f.reshape(3)
+        out = self.concept.function("force", action)(self.p, self.q, self.pose[:3], point)
+        f = cast(np.ndarray, out).reshape(3)  # one output: an array
         if not math.isfinite(f[0] + f[1] + f[2]):
             raise ParameterError(
                 f"the grasp point lies on the axis of {action}'s joint: no linear force moves "

@@ -28,9 +28,9 @@ class _UnitFunctions:
 
     def __init__(self, unit: Unit):
         self.unit = unit
-        self._evaluators: dict[str, Any] | None = None
+        self._evaluators: dict[str, native.Evaluator] | None = None
 
-    def get(self, name: str) -> Any:
+    def get(self, name: str) -> native.Evaluator:
         if self._evaluators is None:
             data = json.loads((self.unit.dir / "functions.json").read_text())
             fns = {n: ca.Function.deserialize(s) for n, s in data.items()}
@@ -53,7 +53,7 @@ class Concept:
         self.links: tuple[str, ...] = tuple(link["name"] for link in entry["links"])
         self.parts: dict[str, str] = dict(entry["parts"])
         self._packer = ParamPacker.of(self.params)
-        self._evaluators: dict[str, Any] = {}  # function key -> evaluator, filled on first use
+        self._evaluators: dict[str, native.Evaluator] = {}  # key -> evaluator, on first use
 
     def __repr__(self) -> str:
         return f"<Concept {self.name}: {len(self.params)} params, {len(self.grasps)} grasps>"
@@ -62,7 +62,9 @@ class Concept:
     def moving_joints(self) -> tuple[str, ...]:
         return tuple(j["name"] for j in self.entry["joints"] if j["index"] is not None)
 
-    def function(self, kind: str, name: str = "") -> Any:
+    def function(self, kind: str, name: str = "") -> native.Evaluator:
+        """The evaluator of function ``kind:name`` (see docs/architecture.md); prefer the typed
+        queries of ``Instance`` and ``grace_dsl.runtime.kinematics.Kinematics``."""
         key = f"{kind}:{name}" if name else kind
         try:
             return self._evaluators[key]
