@@ -28,6 +28,7 @@ from grace_dsl.robot.collision import CollisionScene
 from grace_dsl.robot.ik import IKOptions, IKResult, descend, thread_qp
 from grace_dsl.robot.model import Robot, _rigid
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.symmetry import minimal_spin
 
 FloatArray = np.ndarray
 FINGERS = ("panda_leftfinger", "panda_rightfinger")
@@ -40,6 +41,7 @@ class GraspIKResult(IKResult):
     grasp: str
     free: Mapping[str, float]
     grasp_pose: FloatArray
+    spin: float = 0.0  # radians about a symmetric grasp's axis (0 for other grasps)
 
 
 @dataclass
@@ -54,19 +56,57 @@ class _GraspProblem:
 
     def __post_init__(self) -> None:
         lo, hi, self.default = self.kin.grasp_range(self.grasp)
+        self.m = len(lo)
+        self.symmetric = _is_symmetric(self.kin, self.grasp)
+        if self.symmetric:  # one more unknown: the spin about the symmetry axis
+            lo, hi = np.append(lo, -math.pi), np.append(hi, math.pi)
         self.lower = np.concatenate([self.robot.lower, lo])
         self.upper = np.concatenate([self.robot.upper, hi])
         self.n = self.robot.nq
         self.joints = len(self.kin.joints)
         self.model, self.data = self.robot.model, self.robot.data()
 
-    def grasp_frame(self, g: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """The grasp pose in the robot's base frame and its body Jacobian in ``g`` (6, m)."""
+    def start(self, q: FloatArray) -> FloatArray:
+        """Joints ``q``, the default free parameters and (symmetric) the spin closest to the hand
+        at ``q``: the paper's minimal-rotation rule as the starting guess."""
+        if not self.symmetric:
+            return np.concatenate([q, self.default])
+        pose = self.base_inv @ self.kin.grasp_pose(self.grasp, g=self.default)
+        axis = self.axis(self.default)
+        phi = float(minimal_spin(pose[:3, :3], axis, self.robot.fk(q)[:3, :3]))
+        return np.concatenate([q, self.default, [phi]])
+
+    def axis(self, g: FloatArray) -> FloatArray:
+        """A symmetric grasp's unit axis in its own frame."""
+        fn = self.kin.concept.function("grasp_axis", self.grasp)
+        a = np.asarray(fn(self.kin.p, g), dtype=float).reshape(3)
+        return a / np.linalg.norm(a)
+
+    def grasp_frame(self, gs: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The grasp pose in the robot's base frame and its body Jacobian in the free
+        parameters (6, m), then the spin (6, 1) for a symmetric grasp."""
+        g = gs[: self.m]
         world, jac = self.kin.grasp_pose_jacobian(self.grasp, g=g)
         pose = self.base_inv @ world
         free = jac[:, self.joints :]  # columns: the object's joints first, then g
         rot = pose[:3, :3].T @ self.base_inv[:3, :3]  # world axes -> the grasp frame's axes
-        return pose, np.vstack([rot @ free[:3], rot @ free[3:]])
+        body = np.vstack([rot @ free[:3], rot @ free[3:]])
+        if not self.symmetric:
+            return pose, body
+        axis = self.axis(g)
+        spin = pin.exp3(axis * float(gs[self.m]))
+        pose = pose.copy()
+        pose[:3, :3] = pose[:3, :3] @ spin  # G Rot(a, phi): the spin leaves the origin in place
+        body = np.vstack([spin.T @ body[:3], spin.T @ body[3:]])
+        return pose, np.hstack([body, np.concatenate([np.zeros(3), axis])[:, None]])
+
+    def world_pose(self, gs: FloatArray) -> FloatArray:
+        """The (spun) grasp pose in the world, from the pose function ``grasp:NAME``."""
+        pose = self.kin.grasp_pose(self.grasp, g=gs[: self.m])
+        if self.symmetric:
+            pose = pose.copy()
+            pose[:3, :3] = pose[:3, :3] @ pin.exp3(self.axis(gs[: self.m]) * float(gs[-1]))
+        return pose
 
     def linearize(self, x: FloatArray) -> tuple[FloatArray, FloatArray, float]:
         q, g = x[: self.n], x[self.n :]
@@ -83,6 +123,7 @@ class _GraspProblem:
         return err, jac, score
 
     def random(self, rng: np.random.Generator) -> FloatArray:
+        """Random joints, free parameters and spin within their bounds."""
         return rng.uniform(self.lower, self.upper)
 
 
@@ -110,7 +151,7 @@ def solve_grasp_ik(
     base_m = np.eye(4) if base is None else _rigid(base, "the robot base pose")
     problem = _GraspProblem(robot, Kinematics.of(inst), grasp, np.linalg.inv(base_m), opts)
     q_start = robot.home if q0 is None else robot.check_q(q0)
-    x = np.concatenate([q_start, problem.default])
+    x = problem.start(q_start)
     rng, start = np.random.default_rng(seed), time.perf_counter()
     qp = thread_qp(robot, len(x))
     best: tuple[float, FloatArray] = (math.inf, x)
@@ -144,7 +185,7 @@ def _result(
     robot, opts = problem.robot, problem.opts
     q, g = x[: problem.n].copy(), x[problem.n :].copy()
     pose = robot.fk(q)
-    world_goal = problem.kin.grasp_pose(problem.grasp, g=g)
+    world_goal = problem.world_pose(g)
     goal = problem.base_inv @ world_goal
     err_pos = float(np.linalg.norm(pose[:3, 3] - goal[:3, 3]))
     cos = (np.trace(goal[:3, :3].T @ pose[:3, :3]) - 1.0) / 2.0
@@ -168,4 +209,11 @@ def _result(
         problem.grasp,
         {n: float(v) for n, v in zip(names, g)},
         world_goal,
+        float(g[-1]) if problem.symmetric else 0.0,
     )
+
+
+def _is_symmetric(kin: Kinematics, grasp: str) -> bool:
+    spec = kin.concept.grasps[grasp]
+    value = spec.get("symmetric") if isinstance(spec, Mapping) else getattr(spec, "symmetric", None)
+    return bool(value)
