@@ -18,7 +18,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from grace_dsl.robot.model import Robot
+from grace_dsl.robot.model import Robot, rigid_pose
 
 FloatArray = np.ndarray
 
@@ -100,8 +100,10 @@ def collision_scene(
     margin: float = 0.0,
     ignore: Sequence[str] = (),
     srdf: str | Path | None = None,
+    base: Any = None,
 ) -> CollisionScene:
-    """The collision scene of ``robot`` and the instance ``inst`` (world frame = robot base).
+    """The collision scene of ``robot``, its base at world pose ``base`` (default the origin),
+    and the instance ``inst``.
 
     ``ignore`` names robot bodies (prefixes of their geometry names, e.g. ``panda_leftfinger``)
     that may touch the object: the fingers at a grasp. ``srdf`` defaults to the one beside the
@@ -115,7 +117,9 @@ def collision_scene(
         robot_geoms.append(geometry.addGeometryObject(hull))
     geometry.addAllCollisionPairs()
     _remove_srdf_pairs(robot, geometry, srdf)
-    object_geoms = [geometry.addGeometryObject(g) for g in _object_geometry(inst)] if inst else []
+    to_base = np.eye(4) if base is None else np.linalg.inv(rigid_pose(base, "the robot base pose"))
+    objects = _object_geometry(inst, to_base) if inst is not None else []
+    object_geoms = [geometry.addGeometryObject(g) for g in objects]
     for i in robot_geoms:
         name = geometry.geometryObjects[i].name
         if any(name.startswith(prefix) for prefix in ignore):
@@ -138,8 +142,8 @@ def _remove_srdf_pairs(robot: Robot, geometry: pin.GeometryModel, srdf: str | Pa
         pin.removeCollisionPairs(robot.model, geometry, str(path), False)
 
 
-def _object_geometry(inst: Any) -> list[pin.GeometryObject]:
-    """One static BVH mesh per link of ``inst`` that has shapes, in the world (base) frame."""
+def _object_geometry(inst: Any, to_base: FloatArray) -> list[pin.GeometryObject]:
+    """One static BVH mesh per link of ``inst`` that has shapes, in the robot's base frame."""
     out = []
     for link in inst.concept.links:
         mesh = inst.link_mesh(link)
@@ -147,7 +151,8 @@ def _object_geometry(inst: Any) -> list[pin.GeometryObject]:
             continue
         bvh = coal.BVHModelOBBRSS()
         bvh.beginModel(len(mesh.faces), len(mesh.vertices))
-        bvh.addVertices(np.ascontiguousarray(mesh.vertices, dtype=float))
+        vertices = np.asarray(mesh.vertices, dtype=float) @ to_base[:3, :3].T + to_base[:3, 3]
+        bvh.addVertices(np.ascontiguousarray(vertices))
         bvh.addTriangles(np.ascontiguousarray(mesh.faces, dtype=np.int64))
         bvh.endModel()
         out.append(pin.GeometryObject(f"object/{link}", 0, pin.SE3.Identity(), bvh))

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from grace_dsl.robot.collision import CollisionScene
 from grace_dsl.robot.ik import IKOptions, IKResult, descend, thread_qp
-from grace_dsl.robot.model import Robot, _rigid
+from grace_dsl.robot.model import Robot, rigid_pose
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.symmetry import minimal_spin
 
@@ -148,7 +148,7 @@ def solve_grasp_ik(
     exceptions: ``unreachable``, ``collision``, ``time_limit``.
     """
     opts = options or IKOptions()
-    base_m = np.eye(4) if base is None else _rigid(base, "the robot base pose")
+    base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     problem = _GraspProblem(robot, Kinematics.of(inst), grasp, np.linalg.inv(base_m), opts)
     q_start = robot.home if q0 is None else robot.check_q(q0)
     x = problem.start(q_start)
@@ -166,7 +166,8 @@ def solve_grasp_ik(
         if score <= 1.0:
             return _result(problem, best[1], iterations, attempt, start, "converged")
         if time.perf_counter() - start > opts.time_limit:
-            return _result(problem, best[1], iterations, attempt, start, "time_limit")
+            reason = "collision" if collided else "time_limit"
+            return _result(problem, best[1], iterations, attempt, start, reason)
         x = problem.random(rng)
     reason = "collision" if collided else "unreachable"
     return _result(problem, best[1], iterations, opts.max_restarts, start, reason)

@@ -23,7 +23,7 @@ from typing import Any, Protocol
 import numpy as np
 import pinocchio as pin
 
-from grace_dsl.robot.model import Robot, _rigid
+from grace_dsl.robot.model import Robot, rigid_pose
 from grace_dsl.robot.qp import BoxQP
 
 FloatArray = np.ndarray
@@ -81,7 +81,7 @@ def solve_ik(
     ``success=False`` with the reason and the closest configuration found.
     """
     opts = options or IKOptions()
-    goal = pin.SE3(_rigid(target, "the IK target"))
+    goal = pin.SE3(rigid_pose(target, "the IK target"))
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     q = robot.home.copy() if q0 is None else robot.check_q(q0).copy()

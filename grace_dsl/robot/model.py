@@ -76,7 +76,7 @@ class Robot:
             raise RobotModelError(f"cannot load {urdf}: {exc}") from None
         model, collision = _reduced(full, collision, locked or {})
         frame_name, offset = (tcp, np.eye(4)) if isinstance(tcp, str) else tcp
-        tcp_frame = _add_tcp(model, frame_name, _rigid(offset, "the TCP offset"))
+        tcp_frame = _add_tcp(model, frame_name, rigid_pose(offset, "the TCP offset"))
         q_home = _home(model, home)
         return Robot(
             name or urdf.stem,
@@ -230,7 +230,7 @@ def _home(model: pin.Model, home: Sequence[float] | None) -> FloatArray:
     return _read_only(q)
 
 
-def _rigid(m: Any, what: str) -> FloatArray:
+def rigid_pose(m: Any, what: str) -> FloatArray:
     try:
         arr = np.asarray(m, dtype=float)
     except (TypeError, ValueError):
