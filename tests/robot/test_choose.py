@@ -31,7 +31,7 @@ def test_the_choice_is_reachable_feasible_and_explained(panda: Robot, lib) -> No
         o.grasp for o in door.rank("close", gripper=panda.gripper)
     }
     assert all(reason for _, reason in choice.rejected)
-    assert 0 < choice.margin
+    assert choice.margin > 0
 
 
 def test_a_base_pose_moves_the_problem_with_it(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
