@@ -6,6 +6,8 @@ inst = lib["CurveHandle"].instantiate(radian=1.8)
 inst.grasp("pull", theta=0.1)
 """
 
+from typing import TYPE_CHECKING
+
 from grace_dsl.runtime.errors import (
     CompileError,
     GraceError,
@@ -21,7 +23,46 @@ from grace_dsl.runtime.manipulation import Option
 
 __version__ = "0.1.0"
 
+if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
+    from grace_dsl.robot.choose import GraspChoice, choose_grasp
+    from grace_dsl.robot.collision import collision_scene
+    from grace_dsl.robot.grasp_ik import GraspIKResult, solve_grasp_ik
+    from grace_dsl.robot.ik import IKOptions, IKResult, solve_ik
+    from grace_dsl.robot.model import Robot
+
+# The robot layer loads Pinocchio's robot models and OSQP: imported on first use, so that
+# `import grace_dsl` (and every `eacc` command) stays quick.
+_ROBOT = {
+    "Robot": "grace_dsl.robot.model",
+    "IKResult": "grace_dsl.robot.ik",
+    "IKOptions": "grace_dsl.robot.ik",
+    "solve_ik": "grace_dsl.robot.ik",
+    "GraspIKResult": "grace_dsl.robot.grasp_ik",
+    "solve_grasp_ik": "grace_dsl.robot.grasp_ik",
+    "GraspChoice": "grace_dsl.robot.choose",
+    "choose_grasp": "grace_dsl.robot.choose",
+    "collision_scene": "grace_dsl.robot.collision",
+}
+
+
+def __getattr__(name: str) -> object:
+    if name in _ROBOT:
+        import importlib
+
+        return getattr(importlib.import_module(_ROBOT[name]), name)
+    raise AttributeError(f"module 'grace_dsl' has no attribute {name!r}")
+
+
 __all__ = [
+    "GraspChoice",
+    "GraspIKResult",
+    "IKOptions",
+    "IKResult",
+    "Robot",
+    "choose_grasp",
+    "collision_scene",
+    "solve_grasp_ik",
+    "solve_ik",
     "CompileError",
     "Concept",
     "GraceError",

@@ -1,0 +1,212 @@
+"""Inverse kinematics of a fixed target pose: a sequential QP on OSQP with seeded restarts.
+
+Each step linearizes the SE(3) error of the gripper frame and solves, for the joint step ``dq``,
+
+    min_dq  ½ ‖J_e dq + e‖² + ½ λ ‖dq‖²    s.t.  q_lo − q ≤ dq ≤ q_hi − q
+
+where ``e = log(T(q)⁻¹ T*)`` is the error twist in the gripper frame, ``J_e = −Jlog(e) J(q)`` its
+Jacobian (Pinocchio's frame Jacobian in the gripper frame, through the derivative of the SE(3)
+log) and ``λ = λ₀ + μ‖e‖²`` a Levenberg–Marquardt damping that vanishes at the solution. When the
+unconstrained minimizer lies inside the joint limits it *is* the QP's solution and is taken in
+closed form; otherwise OSQP solves the box QP, warm-started from the previous step. A step longer
+than the trust region ``δ`` (on any joint) is scaled down to it, keeping its direction. A solve
+that stalls restarts from a seeded random configuration.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+import pinocchio as pin
+
+from grace_dsl.robot.model import Robot, rigid_pose
+from grace_dsl.robot.qp import BoxQP
+
+FloatArray = np.ndarray
+
+POSITION_TOLERANCE = 1e-3  # metres
+ROTATION_TOLERANCE = math.radians(1.0)
+REASONS = ("converged", "unreachable", "time_limit")
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """The outcome of :func:`solve_ik`; ``q`` is the best configuration found either way.
+
+    ``success`` holds only when the forward kinematics of ``q`` lies within the tolerances of the
+    target: ``error_pos`` (metres) and ``error_rot`` (radians) are measured on it, not estimated.
+    """
+
+    success: bool
+    q: FloatArray
+    pose: FloatArray
+    error_pos: float
+    error_rot: float
+    iterations: int
+    restarts: int
+    seconds: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class IKOptions:
+    """Tolerances and effort limits of :func:`solve_ik` (SI units)."""
+
+    tol_pos: float = POSITION_TOLERANCE
+    tol_rot: float = ROTATION_TOLERANCE
+    max_iterations: int = 60  # per attempt
+    max_restarts: int = 40
+    time_limit: float = 0.5  # seconds, all attempts together
+    trust_region: float = 0.4  # radians per joint per step
+    damping: float = 1e-6  # λ₀
+    damping_error: float = 1e-2  # μ
+
+
+def solve_ik(
+    robot: Robot,
+    target: Any,
+    q0: Any = None,
+    *,
+    seed: int = 0,
+    options: IKOptions | None = None,
+) -> IKResult:
+    """Joint values that put ``robot``'s gripper frame at the 4x4 world pose ``target``.
+
+    Starts from ``q0`` (default ``robot.home``); when an attempt stalls it restarts from a random
+    configuration drawn with ``seed``. Never raises for an unreachable target: the result says
+    ``success=False`` with the reason and the closest configuration found.
+    """
+    opts = options or IKOptions()
+    goal = pin.SE3(rigid_pose(target, "the IK target"))
+    start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    q = robot.home.copy() if q0 is None else robot.check_q(q0).copy()
+    best: tuple[float, FloatArray] = (math.inf, q.copy())
+    iterations = 0
+    problem, qp = _PoseProblem(robot, goal, opts), thread_qp(robot, robot.nq)
+    for attempt in range(opts.max_restarts + 1):
+        q, used, score = descend(problem, q, opts, qp)
+        iterations += used
+        if score < best[0]:
+            best = (score, q.copy())
+        if score <= 1.0:
+            return _result(robot, goal, best[1], iterations, attempt, start, "converged", opts)
+        if time.perf_counter() - start > opts.time_limit:
+            return _result(robot, goal, best[1], iterations, attempt, start, "time_limit", opts)
+        q = robot.random_q(rng)
+    return _result(robot, goal, best[1], iterations, opts.max_restarts, start, "unreachable", opts)
+
+
+class Linearized(Protocol):
+    """A least-squares problem in ``x`` within ``lower``/``upper``: ``linearize(x)`` gives the
+    error twist ``e``, its Jacobian ``de/dx`` and a score that is <= 1 within tolerance."""
+
+    lower: FloatArray
+    upper: FloatArray
+
+    def linearize(self, x: FloatArray) -> tuple[FloatArray, FloatArray, float]: ...
+
+
+@dataclass
+class _PoseProblem:
+    """The gripper frame of ``robot`` onto the fixed pose ``goal``: x = q."""
+
+    robot: Robot
+    goal: pin.SE3
+    opts: IKOptions
+
+    def __post_init__(self) -> None:
+        self.lower, self.upper = self.robot.lower, self.robot.upper
+        self.model, self.data = self.robot.model, self.robot.data()
+
+    def linearize(self, x: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+        frame = self.robot.tcp_frame
+        pin.computeJointJacobians(self.model, self.data, x)  # also the joints' placements
+        now = pin.updateFramePlacement(self.model, self.data, frame)
+        jac = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
+        diff = now.actInv(self.goal)
+        err = pin.log6(diff).vector
+        pos = float(np.linalg.norm(self.goal.translation - now.translation))
+        score = max(pos / self.opts.tol_pos, float(np.linalg.norm(err[3:])) / self.opts.tol_rot)
+        return err, -pin.Jlog6(diff.inverse()) @ jac, score
+
+
+def descend(
+    problem: Linearized, x: FloatArray, opts: IKOptions, qp: BoxQP
+) -> tuple[FloatArray, int, float]:
+    """Damped Gauss-Newton QP steps from ``x`` until within 1/10 of the tolerance, stalled or out
+    of iterations; returns (x, iterations, score)."""
+    lo, hi = problem.lower, problem.upper
+    eye = np.eye(len(x))
+    err, j_err, score = problem.linearize(x)
+    if score <= 0.1:
+        return x, 0, score
+    history = [score]
+    for it in range(1, opts.max_iterations + 1):
+        lam = opts.damping + opts.damping_error * float(err @ err)
+        p = j_err.T @ j_err + lam * eye
+        c = j_err.T @ err
+        step = -np.linalg.solve(p, c)
+        if not (np.all(x + step >= lo) and np.all(x + step <= hi)):
+            step = qp.solve(p, c, lo - x, hi - x)  # a limit binds
+        largest = float(np.max(np.abs(step)))
+        if largest > opts.trust_region:  # far from the goal the linearization is poor
+            step *= opts.trust_region / largest
+        x = np.clip(x + step, lo, hi)
+        err, j_err, score = problem.linearize(x)
+        history.append(score)
+        if score <= 0.1 or _stalled(history):
+            return x, it, score
+    return x, opts.max_iterations, score
+
+
+def thread_qp(robot: Robot, n: int) -> BoxQP:
+    """One OSQP workspace per robot, size and thread: its setup costs far more than a solve."""
+    cache = robot._local.__dict__.setdefault("qp", {})
+    if n not in cache:
+        cache[n] = BoxQP(n)
+    return cache[n]
+
+
+def _stalled(history: list[float], window: int = 8) -> bool:
+    """No 5% progress over the last ``window`` steps: the attempt is stuck in a local minimum."""
+    if len(history) <= window:
+        return False
+    return history[-1] > 0.95 * history[-1 - window]
+
+
+def _result(
+    robot: Robot,
+    goal: pin.SE3,
+    q: FloatArray,
+    iterations: int,
+    restarts: int,
+    start: float,
+    reason: str,
+    opts: IKOptions,
+) -> IKResult:
+    pose = robot.fk(q)  # measured, not carried over from the iteration
+    err_pos = float(np.linalg.norm(pose[:3, 3] - goal.translation))
+    cos = (np.trace(goal.rotation.T @ pose[:3, :3]) - 1.0) / 2.0
+    err_rot = float(math.acos(min(1.0, max(-1.0, cos))))
+    success = err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
+    if not success and reason == "converged":
+        reason = "unreachable"
+    q = np.array(q)
+    q.setflags(write=False)
+    pose.setflags(write=False)
+    return IKResult(
+        success,
+        q,
+        pose,
+        err_pos,
+        err_rot,
+        iterations,
+        restarts,
+        time.perf_counter() - start,
+        reason if not success else "converged",
+    )

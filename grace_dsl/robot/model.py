@@ -1,0 +1,254 @@
+"""Serial robot arms on Pinocchio, with a tool frame in the project's gripper convention.
+
+A :class:`Robot` is a Pinocchio model reduced to the arm's actuated joints (finger joints are
+locked at a fixed opening), a TCP frame that is the gripper frame of DESIGN.md §6 (origin between
+the fingertips, +z the approach, +y the closing direction) and the hand's description as a
+:class:`~grace_dsl.runtime.gripper.Gripper`. Robot models come from the ``example-robot-data``
+package on PyPI, installed with the project and never downloaded at run time.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+import threading
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.gripper import Gripper
+
+FloatArray = np.ndarray
+PANDA_HOME = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
+
+
+class RobotModelError(ParameterError):
+    """A robot description that cannot be loaded or does not name the frames it should."""
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """An arm: its kinematic model, joint limits, TCP frame, collision geometry and hand.
+
+    ``model`` keeps only the joints that :func:`solve_ik` moves; a configuration ``q`` is a
+    vector of ``model.nq`` joint values in radians (metres for prismatic joints).
+    """
+
+    name: str
+    model: pin.Model
+    collision: pin.GeometryModel
+    tcp_frame: int
+    gripper: Gripper
+    home: FloatArray
+    urdf: Path
+    _local: threading.local = field(default_factory=threading.local, repr=False)
+
+    # -- construction
+    @staticmethod
+    def from_urdf(
+        path: str | Path,
+        tcp: str | tuple[str, Any],
+        gripper: Gripper | None = None,
+        *,
+        locked: Mapping[str, float] | None = None,
+        home: Sequence[float] | None = None,
+        package_dirs: Sequence[str | Path] = (),
+        name: str | None = None,
+    ) -> Robot:
+        """Load an arm from a URDF.
+
+        ``tcp`` is a frame name of the URDF, or ``(frame, T_offset)`` with a 4x4 offset from that
+        frame to the gripper frame. ``locked`` fixes joints (a hand's fingers) at the given values.
+        ``home`` defaults to the middle of every joint's range.
+        """
+        urdf = Path(path)
+        if not urdf.is_file():
+            raise RobotModelError(f"no URDF at {urdf}")
+        dirs = [str(d) for d in package_dirs] or [str(urdf.parent.parent.parent)]
+        try:
+            full, collision, _ = pin.buildModelsFromUrdf(str(urdf), package_dirs=dirs)
+        except (RuntimeError, ValueError) as exc:
+            raise RobotModelError(f"cannot load {urdf}: {exc}") from None
+        model, collision = _reduced(full, collision, locked or {})
+        frame_name, offset = (tcp, np.eye(4)) if isinstance(tcp, str) else tcp
+        tcp_frame = _add_tcp(model, frame_name, rigid_pose(offset, "the TCP offset"))
+        q_home = _home(model, home)
+        return Robot(
+            name or urdf.stem,
+            model,
+            collision,
+            tcp_frame,
+            gripper or Gripper.panda(),
+            q_home,
+            urdf,
+        )
+
+    @staticmethod
+    def panda() -> Robot:
+        """The Franka Emika Panda (example-robot-data), fingers open, TCP ``panda_hand_tcp``.
+
+        ``panda_hand_tcp`` sits 103.4 mm along the hand's +z, between the fingertips; the hand's
+        +z is the approach and its fingers slide along its y axis, so the frame is already the
+        gripper frame of DESIGN.md §6.
+        """
+        urdf = robot_data_file("panda_description/urdf/panda.urdf")
+        return Robot.from_urdf(
+            urdf,
+            tcp="panda_hand_tcp",
+            gripper=Gripper.panda(),
+            locked={"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04},
+            home=PANDA_HOME,
+            package_dirs=[urdf.parents[4]],
+            name="panda",
+        )
+
+    # -- queries
+    @property
+    def nq(self) -> int:
+        return int(self.model.nq)
+
+    @property
+    def lower(self) -> FloatArray:
+        return _read_only(self.model.lowerPositionLimit)
+
+    @property
+    def upper(self) -> FloatArray:
+        return _read_only(self.model.upperPositionLimit)
+
+    @property
+    def velocity_limit(self) -> FloatArray:
+        return _read_only(self.model.velocityLimit)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(self.model.names[i] for i in range(1, self.model.njoints))
+
+    def data(self) -> pin.Data:
+        """This thread's Pinocchio workspace (Pinocchio's data is not safe to share)."""
+        data = getattr(self._local, "data", None)
+        if data is None:
+            data = self._local.data = self.model.createData()
+        return data
+
+    def check_q(self, q: Any, *, within_limits: bool = True) -> FloatArray:
+        """``q`` as a float vector of the right length, finite and (by default) within limits."""
+        try:
+            arr = np.array(q, dtype=float).reshape(-1)
+        except (TypeError, ValueError, OverflowError):
+            raise ParameterError(
+                f"{self.name}: q must be {self.nq} numbers, not {_short(q)}"
+            ) from None
+        if arr.size != self.nq:
+            raise ParameterError(f"{self.name}: q must have {self.nq} values, got {arr.size}")
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{self.name}: q must be finite, got {arr.tolist()}")
+        if within_limits:
+            outside = np.flatnonzero((arr < self.lower - 1e-9) | (arr > self.upper + 1e-9))
+            if outside.size:
+                i = int(outside[0])
+                raise ParameterError(
+                    f"{self.name}: joint {self.joint_names[i]} = {arr[i]:.4f} is outside its "
+                    f"limits [{self.lower[i]:.4f}, {self.upper[i]:.4f}]"
+                )
+        return arr
+
+    def fk(self, q: Any) -> FloatArray:
+        """The 4x4 world pose of the gripper frame at configuration ``q``."""
+        q = self.check_q(q)
+        data = self.data()
+        pin.framesForwardKinematics(self.model, data, q)
+        return np.array(data.oMf[self.tcp_frame].homogeneous)
+
+    def jacobian(self, q: Any) -> FloatArray:
+        """(6, nq): the gripper frame's linear and angular velocity in world axes per joint rate
+        (Pinocchio's LOCAL_WORLD_ALIGNED: the origin's velocity, expressed in world axes)."""
+        q = self.check_q(q)
+        data = self.data()
+        pin.computeJointJacobians(self.model, data, q)
+        pin.updateFramePlacements(self.model, data)
+        return np.array(
+            pin.getFrameJacobian(self.model, data, self.tcp_frame, pin.LOCAL_WORLD_ALIGNED)
+        )
+
+    def random_q(self, rng: np.random.Generator) -> FloatArray:
+        """A configuration drawn uniformly within the joint limits."""
+        return rng.uniform(self.lower, self.upper)
+
+
+def robot_data_file(relative: str) -> Path:
+    """A file of the installed ``example-robot-data`` package (``robots/<relative>``)."""
+    try:
+        files = importlib.metadata.files("example-robot-data") or []
+    except importlib.metadata.PackageNotFoundError:
+        raise RobotModelError(
+            "the example-robot-data package is not installed (pip install example-robot-data)"
+        ) from None
+    suffix = f"robots/{relative}"
+    for entry in files:
+        if str(entry).endswith(suffix):
+            return Path(str(entry.locate()))
+    raise RobotModelError(f"example-robot-data has no {suffix}")
+
+
+def _reduced(
+    full: pin.Model, collision: pin.GeometryModel, locked: Mapping[str, float]
+) -> tuple[pin.Model, pin.GeometryModel]:
+    q = pin.neutral(full)
+    ids = []
+    for joint, value in locked.items():
+        if not full.existJointName(joint):
+            raise RobotModelError(f"the model has no joint {joint!r} to lock")
+        jid = full.getJointId(joint)
+        q[full.joints[jid].idx_q] = value
+        ids.append(jid)
+    if not ids:
+        return full, collision
+    model, (geom,) = pin.buildReducedModel(full, [collision], ids, q)
+    return model, geom
+
+
+def _add_tcp(model: pin.Model, frame_name: str, offset: FloatArray) -> int:
+    if not model.existFrame(frame_name):
+        names = sorted({f.name for f in model.frames})
+        raise RobotModelError(f"the model has no frame {frame_name!r}; frames: {names}")
+    parent = model.frames[model.getFrameId(frame_name)]
+    placement = parent.placement * pin.SE3(offset[:3, :3], offset[:3, 3])
+    frame = pin.Frame("grace_tcp", parent.parentJoint, placement, pin.FrameType.OP_FRAME)
+    return int(model.addFrame(frame))
+
+
+def _home(model: pin.Model, home: Sequence[float] | None) -> FloatArray:
+    lo, hi = model.lowerPositionLimit, model.upperPositionLimit
+    q = (lo + hi) / 2 if home is None else np.asarray(home, dtype=float)
+    if q.shape != (model.nq,) or np.any(q < lo) or np.any(q > hi):
+        raise RobotModelError(f"home must be {model.nq} values within the joint limits")
+    return _read_only(q)
+
+
+def rigid_pose(m: Any, what: str) -> FloatArray:
+    try:
+        arr = np.asarray(m, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} must be a 4x4 matrix, not {_short(m)}") from None
+    if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{what} must be a finite 4x4 matrix")
+    r = arr[:3, :3]
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+        raise ParameterError(f"{what} must be a rigid transform (a rotation and a translation)")
+    return arr
+
+
+def _read_only(a: Any) -> FloatArray:
+    out = np.array(a, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
