@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from grace_dsl.compiler import native
 from grace_dsl.compiler.build import BuildResult, Progress, build
 from grace_dsl.compiler.unit import KEY, UNIT_FORMAT, Unit, UnitError, load_unit, unit_evaluators
 from grace_dsl.lang.diagnostics import render_all
