@@ -119,6 +119,11 @@ def resolve(
             continue
         for use in src.module.uses:
             target = _find_module(use.module, path.parent, search)
+            if target is not None and target.suffix != ".eac":  # a symlink to another file
+                diags.append(_not_source(use, target))  # never read: no excerpt of it leaks
+                prog.use_targets[key].append(None)
+                prog.unresolved.setdefault(key, set()).update(use.names or ("*",))
+                continue
             prog.use_targets[key].append(str(target) if target is not None else None)
             if target is None:
                 diags.append(_missing_module(use, path.parent, search))
@@ -186,6 +191,16 @@ def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Pat
         if candidate.is_file():
             return candidate.resolve()
     return None
+
+
+def _not_source(use: ast.Use, target: Path) -> Diagnostic:
+    name = ".".join(use.module)
+    return error(
+        "E006",
+        f"module `{name}` is a symlink to {target}, which is not a .eac file; it is not read",
+        use.module_span,
+        "point the symlink at a .eac file",
+    )
 
 
 def _missing_module(use: ast.Use, here: Path, search: list[Path]) -> Diagnostic:
