@@ -31,7 +31,10 @@ def run_fmt(args: argparse.Namespace) -> int:
     """Exit 0 when every file is (now) formatted, 1 when one is not or cannot be."""
     files, skipped = eac_files(args.paths)
     for s in skipped:
-        (warning if s.path not in args.paths else error)(f"skipped {s.path}: {s.reason}")
+        if s.path in args.paths:
+            error(f"{s.path}: {s.reason}")
+        else:
+            warning(f"skipped {s.path}: {s.reason}")
     status = 1 if any(s.path in args.paths for s in skipped) else 0
     for path in files:
         try:

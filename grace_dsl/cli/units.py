@@ -38,17 +38,20 @@ def quantity(text: str, dim: str | None) -> float:
         if unit not in UNIT_FACTORS:
             raise UnitSyntaxError(f"unknown unit {unit!r} in {text.strip()!r}")
         unit_dim, num, den, with_pi = UNIT_FACTORS[unit]
-        if str(unit_dim) != (dim or "scalar"):
+        if dim is not None and str(unit_dim) != dim:
             wanted = unit_names(dim) if dim in ("length", "angle") else ""
             raise UnitSyntaxError(
-                f"{text.strip()!r} is a{'n' if str(unit_dim)[0] in 'aeiou' else ''} "
-                f"{unit_dim}, expected a {dim or 'plain number'}"
+                f"{text.strip()!r} is {_a(str(unit_dim))}, expected {_a(dim)}"
                 + (f" ({wanted}, or a bare number in SI)" if wanted else "")
             )
         value = value * num / den * (math.pi if with_pi else 1.0)
     if not math.isfinite(value):
         raise UnitSyntaxError(f"{text.strip()!r} is not a finite number")
     return value
+
+
+def _a(noun: str) -> str:
+    return ("an " if noun[0] in "aeiou" else "a ") + noun
 
 
 def quantities(text: str, dim: str | None) -> list[float]:
