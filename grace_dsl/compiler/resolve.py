@@ -147,7 +147,9 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
     files: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            files += sorted(q.resolve() for q in p.rglob("*.eac"))
+            # regular .eac files only: a FIFO would block, a loop raise, a symlink to
+            # /etc/passwd be quoted in diagnostics (the command line warns about each)
+            files += sorted(q.resolve() for q in p.rglob("*.eac") if _plain_source(q))
         elif p.is_file():
             files.append(p.resolve())
         else:
@@ -155,6 +157,10 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
                 error("E006", f"no such file or directory: {p}", ast.Span(str(p), 0, 0, 0, 0))
             )
     return files
+
+
+def _plain_source(path: Path) -> bool:
+    return path.is_file() and Path(os.path.realpath(path)).suffix == ".eac"
 
 
 def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:

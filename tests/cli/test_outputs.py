@@ -234,3 +234,29 @@ def test_export_with_units_equals_export_in_si(
     )
     err = capsys.readouterr().err
     assert "joint hinge takes a number (rad, or 45deg): '30mm' is a length" in err
+
+
+def test_the_compiler_api_skips_what_the_cli_skips(tmp_path: Path) -> None:
+    """``compile_paths(DIR)`` (no command line in between) neither blocks on a FIFO, nor fails
+    on a symlink loop, nor reads a symlink to a file that is not .eac."""
+    (tmp_path / "a.eac").write_text(OK)
+    os.mkfifo(tmp_path / "x.eac")
+    (tmp_path / "loop.eac").symlink_to(tmp_path / "loop.eac")
+    secret = tmp_path / "secret.txt"
+    secret.write_text("root:x:0:0\n")
+    (tmp_path / "passwd.eac").symlink_to(secret)
+    script = (
+        "import sys\nfrom grace_dsl.compiler.resolve import resolve\n"
+        f"prog, diags = resolve([{str(tmp_path)!r}])\n"
+        "print(sorted(prog.files), [d.message for d in diags])\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "a.eac" in proc.stdout and "root:x" not in proc.stdout
+    assert "x.eac" not in proc.stdout and "loop.eac" not in proc.stdout
