@@ -396,7 +396,7 @@ def cmd_prompt(args: argparse.Namespace) -> int:
         error(str(exc))
         return 1
     if note:
-        warning(note)
+        print_text(f"note: {note}", stderr=True)
     return 0
 
 
