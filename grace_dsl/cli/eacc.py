@@ -6,24 +6,26 @@ Exit codes: 0 success, 1 diagnostics (or files that need formatting), 2 usage er
 from __future__ import annotations
 
 import argparse
-import os
+import contextlib
 import sys
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from grace_dsl.cli.files import UserFileError, atomic_write, eac_files, read_source
 from grace_dsl.cli.output import (
     build_progress,
-    console,
+    error,
     fmt_value,
     print_json,
     print_table,
     print_text,
+    report_diagnostics,
+    warning,
 )
 from grace_dsl.compiler.build import build, export_library, front_end
 from grace_dsl.compiler.resolve import stdlib_dir
-from grace_dsl.lang.diagnostics import Diagnostic, has_errors, render_all
+from grace_dsl.lang.diagnostics import has_errors
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -57,10 +59,11 @@ def _parser() -> argparse.ArgumentParser:
     _search_path(b)
     b.set_defaults(run=cmd_build)
 
+    from grace_dsl.cli.fmt_cmd import add_fmt_arguments, run_fmt
+
     f = sub.add_parser("fmt", help="format .eac files in place (or check them)")
-    f.add_argument("paths", nargs="+", help="files or directories; `-` reads stdin")
-    f.add_argument("--check", action="store_true", help="exit 1 if a file is not formatted")
-    f.set_defaults(run=cmd_fmt)
+    add_fmt_arguments(f)
+    f.set_defaults(run=run_fmt)
 
     ls = sub.add_parser("list", help="list the concepts of a library")
     ls.add_argument("paths", nargs="*", help="default: the standard library")
@@ -84,8 +87,8 @@ def _parser() -> argparse.ArgumentParser:
     _search_path(pr)
     pr.set_defaults(run=cmd_prompt)
 
-    from grace_dsl.export.command import add_export_arguments
-    from grace_dsl.render.command import add_gallery_arguments, add_show_arguments
+    from grace_dsl.cli.export_cmd import add_export_arguments
+    from grace_dsl.cli.show_cmd import add_gallery_arguments, add_show_arguments
 
     x = sub.add_parser("export", help="write an instance as URDF, MJCF or a mesh (OBJ/STL/GLB)")
     add_export_arguments(x)
@@ -125,37 +128,27 @@ def _search_path(p: argparse.ArgumentParser) -> None:
 # ---- check / build ------------------------------------------------------------------------------
 
 
-def _shown(path: str) -> str:
-    """Paths below the working directory print relative to it, as the user typed them."""
-    try:
-        rel = os.path.relpath(path)
-    except ValueError:
-        return path
-    return path if rel.startswith("..") else rel
-
-
-def _relative(diags: Sequence[Diagnostic]) -> list[Diagnostic]:
-    return [replace(d, span=replace(d.span, file=_shown(d.span.file))) for d in diags]
-
-
-def _report(diags: list[Diagnostic], sources: dict[str, str], as_json: bool) -> None:
-    if as_json:
-        return
-    diags = _relative(diags)
-    sources = {_shown(k): v for k, v in sources.items()}
-    if diags:
-        err = console(stderr=True)
-        text = render_all(diags, sources)
-        if err.is_terminal:
-            err.print(text, style="red" if has_errors(diags) else "yellow", markup=False)
+def sources(paths: Sequence[str]) -> list[str] | None:
+    """The .eac files that ``paths`` name, for the compiler: directories are searched here, so
+    that what cannot be read (a FIFO, a symlink loop, a symlink to a file that is not .eac) is
+    skipped with a warning instead of blocking or failing the command; a file named directly
+    that cannot be read is an error (None)."""
+    files, skipped = eac_files(paths)
+    bad = False
+    for s in skipped:
+        if s.path in paths:
+            error(f"{s.path}: {s.reason}")
+            bad = True
         else:
-            sys.stderr.write(text + "\n")
-        n = sum(d.severity == "error" for d in diags)
-        sys.stderr.write(f"{n} error{'s' if n != 1 else ''}\n")
+            warning(f"skipped {s.path}: {s.reason}")
+    return None if bad else files
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    prog, checked, diags = front_end(args.paths, args.search_path)
+    paths = sources(args.paths)
+    if paths is None:
+        return 1
+    prog, checked, diags = front_end(paths, args.search_path)
     if args.json:
         print_json(
             {
@@ -166,16 +159,19 @@ def cmd_check(args: argparse.Namespace) -> int:
             }
         )
     else:
-        _report(diags, prog.sources(), False)
+        report_diagnostics(diags, prog.sources())
         if not has_errors(diags):
             print_text(f"ok: {len(prog.concepts)} concepts in {len(prog.files)} files")
     return 1 if has_errors(diags) else 0
 
 
 def cmd_build(args: argparse.Namespace) -> int:
+    paths = sources(args.paths)
+    if paths is None:
+        return 1
     with build_progress(not args.json) as progress:
         result = build(
-            args.paths,
+            paths,
             args.cache_dir,
             args.search_path,
             use_native=not args.no_native,
@@ -204,7 +200,7 @@ def cmd_build(args: argparse.Namespace) -> int:
             }
         )
         return 0 if ok else 1
-    _report(diags, result.sources, False)
+    report_diagnostics(diags, result.sources)
     if ok:
         n = sum(len(u.concepts) for u in result.units)
         where = args.output or result.cache_dir
@@ -216,40 +212,6 @@ def cmd_build(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
-# ---- fmt ----------------------------------------------------------------------------------------
-
-
-def cmd_fmt(args: argparse.Namespace) -> int:
-    from grace_dsl.lang.formatter import format_source
-
-    status = 0
-    for path in _eac_files(args.paths):
-        text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
-        result = format_source(text, path if path != "-" else "<stdin>")
-        if result.text is None:
-            _report(list(result.diagnostics), {path: text}, False)
-            status = 1
-            continue
-        if path == "-":
-            sys.stdout.write(result.text)
-        elif result.text != text:
-            if args.check:
-                print_text(f"would reformat {path}")
-                status = 1
-            else:
-                Path(path).write_text(result.text, encoding="utf-8")
-                print_text(f"formatted {path}")
-    return status
-
-
-def _eac_files(paths: Sequence[str]) -> list[str]:
-    files: list[str] = []
-    for p in paths:
-        path = Path(p)
-        files += [str(f) for f in sorted(path.rglob("*.eac"))] if path.is_dir() else [p]
-    return files
-
-
 # ---- list / explain -----------------------------------------------------------------------------
 
 
@@ -257,14 +219,26 @@ def _library(paths: Sequence[str], search_path: Sequence[str]) -> Any:
     from grace_dsl.runtime.errors import CompileError
     from grace_dsl.runtime.library import compile_paths
 
+    files = sources(paths) if paths else [str(stdlib_dir())]
+    if files is None:
+        return None
     try:
         with build_progress() as progress:
-            return compile_paths(
-                list(paths) or [stdlib_dir()], search_path=search_path, progress=progress
-            )
+            return compile_paths(files, search_path=search_path, progress=progress)
     except CompileError as exc:
-        sys.stderr.write(str(exc) + "\n")
+        report_diagnostics(list(exc.diagnostics), _sources_of(exc))  # type: ignore[arg-type]
         return None
+
+
+def _sources_of(exc: Exception) -> dict[str, str]:
+    """The source texts a ``CompileError``'s diagnostics point into (for their excerpts)."""
+    sources: dict[str, str] = {}
+    for d in getattr(exc, "diagnostics", ()):
+        f = d.span.file
+        if f not in sources:
+            with contextlib.suppress(UserFileError):
+                sources[f] = read_source(Path(f)).text
+    return sources
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -317,7 +291,7 @@ def cmd_explain(args: argparse.Namespace) -> int:
         try:
             lib[args.concept]
         except KeyError as exc:
-            sys.stderr.write(f"eacc: {exc}\n")
+            error(str(exc) + _defined_here(args.concept))
         return 1
     c = lib[args.concept]
     if args.json:
@@ -385,6 +359,21 @@ def cmd_explain(args: argparse.Namespace) -> int:
     return 0
 
 
+def _defined_here(name: str) -> str:
+    """``"; ./door.eac defines it: eacc explain Door door.eac"`` when a ``.eac`` file in the
+    working directory declares ``name`` (read with the parser, so comments do not count)."""
+    from grace_dsl.lang.parser import parse
+
+    for path in sorted(Path.cwd().glob("*.eac")):
+        try:
+            module = parse(read_source(path).text, str(path)).module
+        except UserFileError:
+            continue
+        if module is not None and any(c.name == name for c in module.concepts):
+            return f"; {path.name} in this directory defines it: eacc explain {name} {path.name}"
+    return ""
+
+
 def cmd_prompt(args: argparse.Namespace) -> int:
     from grace_dsl.runtime.catalog import build_catalog, render_json, render_markdown
     from grace_dsl.runtime.errors import UnknownNameError
@@ -395,14 +384,19 @@ def cmd_prompt(args: argparse.Namespace) -> int:
     try:
         catalog = build_catalog(lib, args.concept or None)
     except UnknownNameError as exc:
-        sys.stderr.write(f"eacc: {exc.args[0]}\n")
+        error(str(exc.args[0]))
         return 1
     text = render_json(catalog) if args.format == "json" else render_markdown(catalog)
     if args.output is None:
         sys.stdout.write(text)
-    else:
-        args.output.parent.mkdir(parents=True, exist_ok=True)
-        args.output.write_text(text, encoding="utf-8")
+        return 0
+    try:
+        note = atomic_write(args.output, text).note()
+    except UserFileError as exc:
+        error(str(exc))
+        return 1
+    if note:
+        print_text(f"note: {note}", stderr=True)
     return 0
 
 
@@ -410,7 +404,7 @@ def cmd_prompt(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from grace_dsl.export.command import run_export
+    from grace_dsl.cli.export_cmd import run_export
 
     lib = _library(args.paths, args.search_path)
     return 1 if lib is None else run_export(args, lib)
@@ -420,14 +414,14 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from grace_dsl.render.command import run_show
+    from grace_dsl.cli.show_cmd import run_show
 
     lib = _library(args.paths, args.search_path)
     return 1 if lib is None else run_show(args, lib)
 
 
 def cmd_gallery(args: argparse.Namespace) -> int:
-    from grace_dsl.render.command import run_gallery
+    from grace_dsl.cli.show_cmd import run_gallery
 
     lib = _library(args.paths, args.search_path)
     return 1 if lib is None else run_gallery(args, lib)

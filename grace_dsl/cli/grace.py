@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.cli.eacc import main as eacc_main
-from grace_dsl.cli.output import print_text
+from grace_dsl.cli.output import error, print_text
+from grace_dsl.runtime.errors import GraceError
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -27,7 +28,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command != "demo":
         parser.print_help()
         return 2
-    return demo(Path(args.output))
+    try:
+        return demo(Path(args.output))
+    except GraceError as exc:  # an output directory that cannot be written, say
+        error(str(exc))
+        return 1
 
 
 def demo(output: Path) -> int:
@@ -68,19 +73,20 @@ def _print_options(inst: Any, action: str, hand: Any) -> None:
 def _pictures(inst: Any, output: Path) -> None:
     """A PNG (MuJoCo, offscreen) and a self-contained HTML viewer of the door with its grasp
     frames, forces and hinge axis; the PNG is skipped with a note where no OpenGL exists."""
-    from grace_dsl.render.html import write_html
+    from grace_dsl.cli.files import atomic_write, staged
+    from grace_dsl.render.html import scene_html
     from grace_dsl.render.png import RenderError
     from grace_dsl.render.scene import describe
 
     scene = describe(inst)
-    output.mkdir(parents=True, exist_ok=True)
-    html = write_html(scene, output / "SunkenDoor.html", "hinge = 0.4 rad")
+    html = atomic_write(output / "SunkenDoor.html", scene_html(scene, "hinge = 0.4 rad")).path
     print_text(f"\n3D viewer (open in a browser): {html}")
     try:
         from grace_dsl.export.model import build_model
         from grace_dsl.render.png import write_png
 
-        png = write_png(scene, output / "SunkenDoor.png", 800, 600, build_model(inst))
+        model, png = build_model(inst), output / "SunkenDoor.png"
+        staged(png, lambda p: write_png(scene, p, 800, 600, model))
         print_text(f"picture: {png}")
     except (RenderError, ImportError) as exc:
         print_text(f"picture skipped: {exc}")

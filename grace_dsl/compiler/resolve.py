@@ -119,6 +119,11 @@ def resolve(
             continue
         for use in src.module.uses:
             target = _find_module(use.module, path.parent, search)
+            if target is not None and target.suffix != ".eac":  # a symlink to another file
+                diags.append(_not_source(use, target))  # never read: no excerpt of it leaks
+                prog.use_targets[key].append(None)
+                prog.unresolved.setdefault(key, set()).update(use.names or ("*",))
+                continue
             prog.use_targets[key].append(str(target) if target is not None else None)
             if target is None:
                 diags.append(_missing_module(use, path.parent, search))
@@ -142,7 +147,9 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
     files: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            files += sorted(q.resolve() for q in p.rglob("*.eac"))
+            # regular .eac files only: a FIFO would block, a loop raise, a symlink to
+            # /etc/passwd be quoted in diagnostics (the command line warns about each)
+            files += sorted(q.resolve() for q in p.rglob("*.eac") if _plain_source(q))
         elif p.is_file():
             files.append(p.resolve())
         else:
@@ -150,6 +157,10 @@ def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Pa
                 error("E006", f"no such file or directory: {p}", ast.Span(str(p), 0, 0, 0, 0))
             )
     return files
+
+
+def _plain_source(path: Path) -> bool:
+    return path.is_file() and Path(os.path.realpath(path)).suffix == ".eac"
 
 
 def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
@@ -186,6 +197,16 @@ def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Pat
         if candidate.is_file():
             return candidate.resolve()
     return None
+
+
+def _not_source(use: ast.Use, target: Path) -> Diagnostic:
+    name = ".".join(use.module)
+    return error(
+        "E006",
+        f"module `{name}` is a symlink to {target}, which is not a .eac file; it is not read",
+        use.module_span,
+        "point the symlink at a .eac file",
+    )
 
 
 def _missing_module(use: ast.Use, here: Path, search: list[Path]) -> Diagnostic:

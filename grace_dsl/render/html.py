@@ -72,8 +72,29 @@ def scene_json(scene: Scene) -> dict[str, Any]:
     }
 
 
+# Inside <script>, the HTML parser looks for `</script`, and after `<!--` a `<script` changes
+# what ends the block; none of them may appear in what the page embeds there.
+SCRIPT_HAZARDS = ("<!--", "<script", "</")
+
+# JSON may spell any character as \uXXXX; these are the ones that can start HTML inside a
+# script block (< and >, and & for good measure) or end a JavaScript line (U+2028/9).
+_JSON_ESCAPES = {ord(c): f"\\u{ord(c):04x}" for c in "<>&\u2028\u2029"}
+
+
+def script_json(data: Any) -> str:
+    """``data`` as JSON that is inert inside ``<script>``: no ``<`` at all, so no user text
+    (a title ``<!--<script>``, say) can end the block early or stop the next one running."""
+    text = json.dumps(data, separators=(",", ":"))
+    return text.translate(_JSON_ESCAPES)
+
+
 def _viewer_source() -> str:
-    return resources.files("grace_dsl.render").joinpath("viewer.js").read_text(encoding="utf-8")
+    """The viewer's code; it is ours, but is checked all the same before it goes into a page."""
+    text = resources.files("grace_dsl.render").joinpath("viewer.js").read_text(encoding="utf-8")
+    hazard = next((h for h in SCRIPT_HAZARDS if h in text.lower()), None)
+    if hazard is not None:
+        raise ValueError(f"viewer.js contains {hazard!r}, which would break its <script> block")
+    return text
 
 
 def _legend(scene: Scene) -> str:
@@ -127,7 +148,7 @@ PAGE = """<!DOCTYPE html>
 
 def scene_html(scene: Scene, subtitle: str = "") -> str:
     """The page's text."""
-    data = json.dumps(scene_json(scene), separators=(",", ":")).replace("</", "<\\/")
+    data = script_json(scene_json(scene))
     hint = "drag: orbit &middot; wheel: zoom &middot; shift-drag: pan &middot; double-click: reset"
     return PAGE.format(
         title=html.escape(scene.title),
@@ -135,7 +156,7 @@ def scene_html(scene: Scene, subtitle: str = "") -> str:
         bg=style.hex_color(style.BACKGROUND),
         legend=_legend(scene),
         data=data,
-        viewer=_viewer_source().replace("</script", "<\\/script"),
+        viewer=_viewer_source(),
     )
 
 

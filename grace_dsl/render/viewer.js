@@ -1,5 +1,5 @@
 // GRACE-EAC scene viewer: a self-contained orbit viewer for one concept instance.
-// Reads the JSON in <script id="scene-data">, draws it with WebGL, or with a Canvas-2D painter's
+// Reads the JSON in the script element "scene-data", draws it with WebGL, or with a Canvas-2D painter's
 // algorithm where WebGL is missing (or when the page's URL ends in #2d). No network, no library.
 // Drag: orbit. Wheel: zoom. Shift-drag or right-drag: pan. Double-click or "r": reset.
 (function () {

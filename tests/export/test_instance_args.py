@@ -15,8 +15,9 @@ import pytest
 
 import grace_dsl as eac
 from grace_dsl.cli.eacc import main
+from grace_dsl.cli.export_cmd import add_export_arguments
+from grace_dsl.cli.instance_args import instance_from_args, parse_pose
 from grace_dsl.export import build_model, write_mjcf, write_urdf
-from grace_dsl.export.command import add_export_arguments, instance_from_args, parse_pose
 from grace_dsl.export.common import ExportPathError
 from grace_dsl.runtime.shapes import ShapeTree
 from tests.export.test_export import _mj_pose, _pin_q

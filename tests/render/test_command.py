@@ -13,8 +13,8 @@ from PIL import Image
 
 import grace_dsl as eac
 from grace_dsl.cli.eacc import main
+from grace_dsl.cli.show_cmd import gallery_jobs, image_size
 from grace_dsl.geometry import PRIMITIVES
-from grace_dsl.render.command import gallery_jobs, image_size
 from tests.render.conftest import TOYBOX, needs_gl
 
 

@@ -1,12 +1,12 @@
 """``eacc show`` (one instance as PNG and/or HTML) and ``eacc gallery`` (a PNG of every concept
 and primitive). The instance comes from the same arguments as ``eacc export``; every error a
-user can cause is one message and exit code 1.
+user can cause is one message and exit code 1. Pictures and pages are written atomically
+(``cli.files``), and the report says what they overwrote.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -14,12 +14,9 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from grace_dsl.export.command import (
-    ExportUsageError,
-    add_instance_arguments,
-    count,
-    instance_from_args,
-)
+from grace_dsl.cli.files import Written, atomic_write, staged
+from grace_dsl.cli.instance_args import ExportUsageError, add_instance_arguments, instance_from_args
+from grace_dsl.cli.output import count, error, print_json, print_text
 from grace_dsl.render.png import RenderError
 from grace_dsl.render.scene import Scene, describe, primitive_scene
 from grace_dsl.runtime.concept import suggest
@@ -68,8 +65,9 @@ def image_size(text: str) -> tuple[int, int]:
 
 def run_show(args: Any, library: Any) -> int:
     """The body of ``eacc show`` once the library is compiled."""
-    from grace_dsl.render.html import write_html
+    from grace_dsl.render.html import scene_html
 
+    written: list[Written] = []
     try:
         width, height = image_size(args.size)
         inst = instance_from_args(args, library)
@@ -79,13 +77,15 @@ def run_show(args: Any, library: Any) -> int:
             from grace_dsl.export.model import build_model
             from grace_dsl.render.png import write_png
 
-            write_png(scene, args.png, width, height, build_model(inst))
+            model = build_model(inst)
+            png = Path(args.png)
+            written += staged(png, lambda p: write_png(scene, p, width, height, model))[1]
         if args.html is not None:
-            write_html(scene, args.html, subtitle)
+            written.append(atomic_write(args.html, scene_html(scene, subtitle)))
     except (GraceError, OSError, ValueError) as exc:
-        sys.stderr.write(f"eacc: {exc}\n")
+        error(str(exc))
         return 1
-    _report(scene, len(inst.concept.links), args)
+    _report(scene, len(inst.concept.links), args, written)
     return 0
 
 
@@ -94,15 +94,15 @@ def _subtitle(inst: Any) -> str:
     return joints or "no moving joints"
 
 
-def _report(scene: Scene, links: int, args: Any) -> None:
+def _report(scene: Scene, links: int, args: Any, changes: list[Written]) -> None:
     """One line: the concept's links (and how many have shapes, when not all do, since a
-    link without shapes draws nothing), grasp frames, forces and joint axes."""
-    from grace_dsl.cli.output import print_json, print_text
-
+    link without shapes draws nothing), grasp frames, forces and joint axes; then a note per
+    file overwritten."""
     info = scene.summary()
     written = [f for f in (args.png, args.html) if f is not None]
+    overwritten = [str(w.path) for w in changes if w.replaced]
     if args.json:
-        print_json({**info, "png": args.png, "html": args.html})
+        print_json({**info, "png": args.png, "html": args.html, "overwritten": overwritten})
         return
     frames = sum(info["grasp_frames"].values())
     shaped = f" ({len(scene.parts)} with shapes)" if len(scene.parts) != links else ""
@@ -112,7 +112,7 @@ def _report(scene: Scene, links: int, args: Any) -> None:
         f"{count(len(scene.joints), 'joint axis', 'joint axes')}"
         + (f" -> {', '.join(written)}" if written else "")
     )
-    for note in scene.notes:
+    for note in [*scene.notes, *(w.note() for w in changes if w.replaced)]:
         print_text(f"note: {note}")
 
 
@@ -148,13 +148,17 @@ def _concept_png(concept: Any, path: Path) -> Path:
     from grace_dsl.render.png import write_png
 
     inst = concept.instantiate()
-    return write_png(describe(inst), path, *GALLERY_SIZE, build_model(inst), palette=True)
+    scene, model = describe(inst), build_model(inst)
+    staged(path, lambda p: write_png(scene, p, *GALLERY_SIZE, model, palette=True))
+    return path
 
 
 def _primitive_png(name: str, path: Path) -> Path:
     from grace_dsl.render.png import write_png
 
-    return write_png(primitive_scene(name), path, *GALLERY_SIZE, palette=True)
+    scene = primitive_scene(name)
+    staged(path, lambda p: write_png(scene, p, *GALLERY_SIZE, palette=True))
+    return path
 
 
 @contextmanager
@@ -179,19 +183,13 @@ def _progress(total: int, enabled: bool) -> Iterator[Callable[[str], None]]:
 
 def run_gallery(args: Any, library: Any) -> int:
     """The body of ``eacc gallery``: draw every picture; a failure is reported, not fatal."""
-    from grace_dsl.cli.output import print_json, print_text
-
     output = Path(args.output)
     jobs = gallery_jobs(library, output)
     if args.only:
         names = [pic.name for pic, _ in jobs]
         unknown = [n for n in args.only if n not in names]
         if unknown:
-            sys.stderr.write(
-                f"eacc: --only {unknown[0]}: no such concept or primitive"
-                + suggest(unknown[0], names)
-                + "\n"
-            )
+            error(f"--only {unknown[0]}: no such concept or primitive" + suggest(unknown[0], names))
             return 1
         jobs = [(pic, job) for pic, job in jobs if pic.name in args.only]
     done: list[Picture] = []
@@ -202,13 +200,13 @@ def run_gallery(args: Any, library: Any) -> int:
                 job()
                 done.append(pic)
             except RenderError as exc:  # no GL or no MuJoCo: every picture would fail alike
-                sys.stderr.write(f"eacc: {exc}\n")
+                error(str(exc))
                 return 1
             except (GraceError, OSError, ValueError) as exc:
                 failed.append((pic, str(exc)))
             step(pic.name)
     for pic, message in failed:
-        sys.stderr.write(f"eacc: {pic.kind} {pic.name}: {message}\n")
+        error(f"{pic.kind} {pic.name}: {message}")
     if args.json:
         print_json(
             {
