@@ -24,6 +24,7 @@ from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.gripper import Gripper
 
 FloatArray = np.ndarray
+UR5_HOME = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
 PANDA_HOME = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
 
 
@@ -105,6 +106,27 @@ class Robot:
             home=PANDA_HOME,
             package_dirs=[urdf.parents[4]],
             name="panda",
+        )
+
+    @staticmethod
+    def ur5(tcp_offset: float = 0.15) -> Robot:
+        """Universal Robots' UR5 (example-robot-data's ``ur5_gripper.urdf``) with a parallel hand
+        of the Panda's finger geometry on its flange, fingertips ``tcp_offset`` metres out.
+
+        The URDF carries no hand geometry, so the hand itself is not collision-checked; the arm
+        is. ``tool0``'s +z points out of the flange: it is the approach, and +y the closing
+        direction, as the gripper convention asks.
+        """
+        urdf = robot_data_file("ur_description/urdf/ur5_gripper.urdf")
+        offset = np.eye(4)
+        offset[2, 3] = tcp_offset
+        return Robot.from_urdf(
+            urdf,
+            tcp=("tool0", offset),
+            gripper=Gripper.panda(),
+            home=UR5_HOME,
+            package_dirs=[urdf.parents[4]],
+            name="ur5",
         )
 
     # -- queries

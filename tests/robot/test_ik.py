@@ -79,3 +79,14 @@ def test_result_arrays_are_read_only(panda: Robot) -> None:
     result = solve_ik(panda, panda.fk(panda.home))
     with pytest.raises(ValueError):
         result.q[0] = 1.0
+
+
+def test_the_ur5_reaches_its_targets_too() -> None:
+    ur5 = Robot.ur5()
+    rng = np.random.default_rng(12)
+    for i in range(15):
+        target = ur5.fk(ur5.random_q(rng))
+        result = solve_ik(ur5, target, seed=i)
+        assert result.success, result
+        pos, rot = _errors(ur5.fk(result.q), target)
+        assert pos <= 1e-3 and rot <= math.radians(1)

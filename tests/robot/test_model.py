@@ -29,9 +29,11 @@ def _origin(joint: ET.Element) -> np.ndarray:
     return m
 
 
-def urdf_chain_fk(q: np.ndarray, tip: str = "panda_hand_tcp") -> np.ndarray:
+def urdf_chain_fk(
+    q: np.ndarray, tip: str = "panda_hand_tcp", urdf: str = "panda_description/urdf/panda.urdf"
+) -> np.ndarray:
     """Forward kinematics by walking the URDF's joints from ``tip`` to the root, numpy only."""
-    root = ET.parse(robot_data_file("panda_description/urdf/panda.urdf")).getroot()
+    root = ET.parse(robot_data_file(urdf)).getroot()
     by_child = {j.find("child").get("link"): j for j in root.findall("joint")}
     chain = []
     link = tip
@@ -131,3 +133,16 @@ def test_tcp_offset_moves_the_gripper_frame(panda: Robot) -> None:
     )
     q = panda.random_q(np.random.default_rng(1))
     np.testing.assert_allclose(robot.fk(q), panda.fk(q), atol=1e-12)
+
+
+def test_a_second_arm_ur5() -> None:
+    """Nothing is Panda-only: the UR5's gripper frame is tool0 moved 150 mm out of the flange."""
+    ur5 = Robot.ur5()
+    assert ur5.nq == 6
+    rng = np.random.default_rng(8)
+    for _ in range(10):
+        q = ur5.random_q(rng)
+        chain = urdf_chain_fk(q, "tool0", "ur_description/urdf/ur5_gripper.urdf")
+        out = np.eye(4)
+        out[2, 3] = 0.15
+        np.testing.assert_allclose(ur5.fk(q), chain @ out, atol=1e-12)
