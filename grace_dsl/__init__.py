@@ -24,6 +24,7 @@ from grace_dsl.runtime.manipulation import Option
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
+    from grace_dsl.robot.act import ActionPlan, plan_action
     from grace_dsl.robot.choose import GraspChoice, choose_grasp
     from grace_dsl.robot.collision import collision_scene
     from grace_dsl.robot.grasp_ik import GraspIKResult, solve_grasp_ik
@@ -42,6 +43,8 @@ _ROBOT = {
     "GraspChoice": "grace_dsl.robot.choose",
     "choose_grasp": "grace_dsl.robot.choose",
     "collision_scene": "grace_dsl.robot.collision",
+    "ActionPlan": "grace_dsl.robot.act",
+    "plan_action": "grace_dsl.robot.act",
 }
 
 
@@ -54,6 +57,7 @@ def __getattr__(name: str) -> object:
 
 
 __all__ = [
+    "ActionPlan",
     "GraspChoice",
     "GraspIKResult",
     "IKOptions",
@@ -61,6 +65,7 @@ __all__ = [
     "Robot",
     "choose_grasp",
     "collision_scene",
+    "plan_action",
     "solve_grasp_ik",
     "solve_ik",
     "CompileError",
