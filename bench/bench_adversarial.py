@@ -771,10 +771,9 @@ def cache_cases() -> Iterator[Case]:
             def __reduce__(self) -> tuple[Any, ...]:
                 return (os.system, (f"touch {marker}",))
 
-        for name in ("eac-grammar.lark-cache",):
-            (cache / name).write_bytes(pickle.dumps(Planted()))
-            for found in _each(cache, "*lark*"):
-                found.write_bytes(pickle.dumps(Planted()))
+        (cache / "eac-grammar.lark-cache").write_bytes(pickle.dumps(Planted()))  # the old name
+        for found in _each(cache, "*lark*") + _each(cache / "grammar", "*"):
+            found.write_bytes(pickle.dumps(Planted()))
 
     def replaced_so(cache: Path, marker: Path) -> None:
         for so in _each(cache, "*.so"):
@@ -895,9 +894,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the source mutations")
     ap.add_argument("--json", action="store_true", help="one JSON record per case on stdout")
     ap.add_argument("--out", type=Path, default=None, help=f"result file (default {RESULTS})")
+    ap.add_argument("--group", nargs="*", default=None, help="only these groups (api source ...)")
     args = ap.parse_args(argv)
 
     cases = all_cases(args.seed)
+    if args.group:
+        cases = [c for c in cases if c.group in args.group]
     if args.smoke:
         cases = cases[::12]
     records = _run_all(cases, quiet=args.json)
