@@ -82,10 +82,6 @@ class ParamSpec:
                 f"{self.name} must be {'a number' if self.size == 1 else f'{self.size} numbers'}"
                 f" ({self.type}), not {show_value(value)}"
             ) from None
-        if arr.ndim > 1:
-            raise ParameterError(
-                f"{self.name} takes a flat list of {self.size} number(s), got shape {arr.shape}"
-            )
         arr = arr.reshape(-1)
         if arr.size != self.size:
             raise ParameterError(

@@ -463,7 +463,7 @@ def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -
             )
         v = float(value) if type(value) in (float, int) and abs(value) < 1e300 else None
         if v is None:
-            v = as_number(f"joint {name} (SI: rad or m)", value)
+            v = as_number(f"joint {name} (rad or m)", value)
         if not lo[i] - _TOL <= v <= hi[i] + _TOL:  # NaN fails too
             raise ParameterError(
                 f"joint {name} = {v!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
