@@ -8,6 +8,7 @@ inst.grasp("pull", theta=0.1)
 
 from grace_dsl.runtime.errors import (
     CompileError,
+    EvaluationError,
     GraceError,
     ParameterError,
     RequirementError,
@@ -23,6 +24,7 @@ __version__ = "0.1.0"
 __all__ = [
     "CompileError",
     "Concept",
+    "EvaluationError",
     "GraceError",
     "Gripper",
     "Instance",
