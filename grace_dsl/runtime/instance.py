@@ -51,7 +51,6 @@ _pose = as_pose
 
 _ORIGIN = np.zeros(3)  # any point: an explicit direction is the same everywhere
 _TOL = 1e-12  # slack on range bounds
-_BIG = math.inf  # free-parameter ranges must lie strictly inside (-_BIG, _BIG)
 _AXIS = 1e-5  # metres: within this of a joint's axis the compiled force is NaN (1e-6) on purpose
 _Limits = tuple[tuple[float, ...], tuple[float, ...]]
 
@@ -213,7 +212,10 @@ class Instance:
             box = tuple([_read_only(x.reshape(-1)) for x in outputs])
             lo, hi, default = (x.tolist() for x in box)
             # NaN fails every comparison: this refuses NaN and infinite ranges and defaults
-            if not all(-_BIG < a <= c <= b < _BIG for a, b, c in zip(lo, hi, default)):
+            if not all(
+                -math.inf < a <= b < math.inf and math.isfinite(c)
+                for a, b, c in zip(lo, hi, default)
+            ):
                 raise self._evaluation(
                     f"the range of grasp {spec.name}'s free parameters "
                     f"({_pairs(spec.free_names, lo, hi, default)})",

@@ -266,3 +266,29 @@ def test_random_inputs_raise_only_grace_errors(
     except eac.GraceError:
         return
     assert finite(result), (which, x, y)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"max_width": "0.08"},
+        {"finger_length": HUGE},
+        {"finger_width": None},
+        {"approach": "down"},
+        {"approach": (0, 0, "a")},
+        {"approach": [[0, 0, 1]]},
+        {"approach_tolerance": None},
+        {"approach_tolerance": math.nan},
+    ],
+)
+def test_a_bad_gripper_is_a_parameter_error(change: dict[str, Any]) -> None:
+    import dataclasses
+
+    with pytest.raises(eac.ParameterError, match="gripper panda"):
+        dataclasses.replace(eac.Gripper.panda(), **change)
+
+
+@pytest.mark.parametrize("width", ["0.01", None, HUGE, math.nan, -0.01, 0.2])
+def test_a_bad_opening_is_a_parameter_error(width: Any) -> None:
+    with pytest.raises(eac.ParameterError):
+        eac.Gripper.panda().finger_boxes(width)
