@@ -157,7 +157,8 @@ class Instance:
         from grace_dsl.runtime.shapes import instance_mesh
 
         resolution = as_count("resolution", resolution, 3, MAX_RESOLUTION)
-        return _geometry(lambda: instance_mesh(self, None, resolution))
+        self._check_links()
+        return self._finite_mesh(_geometry(lambda: instance_mesh(self, None, resolution)))
 
     def link_mesh(self, link: str, resolution: int = 64) -> Any:
         """The mesh of one link's shapes, in the world."""
@@ -165,13 +166,28 @@ class Instance:
 
         self.link_pose(link)  # validates the name
         resolution = as_count("resolution", resolution, 3, MAX_RESOLUTION)
-        return _geometry(lambda: instance_mesh(self, link, resolution))
+        self._check_links()
+        return self._finite_mesh(_geometry(lambda: instance_mesh(self, link, resolution)))
+
+    def _check_links(self) -> None:
+        """Every link pose finite (once per instance): the geometry moves shapes by them, and an
+        infinite motion would surface there as a misleading complaint about the points."""
+        if "_links_ok" not in self.__dict__:
+            for link in self.concept.links:
+                self.link_pose(link)
+            object.__setattr__(self, "_links_ok", True)
+
+    def _finite_mesh(self, mesh: Any) -> Any:
+        if len(mesh.vertices) and not _finite(np.asarray(mesh.vertices)):
+            raise self._evaluation("a mesh vertex", self._shapes_where())
+        return mesh
 
     def sdf(self, points: Any) -> np.ndarray:
         """(N,) signed distances of world points to the instance, negative inside."""
         from grace_dsl.runtime.shapes import instance_sdf
 
         pts = as_points(points)
+        self._check_links()
         d = np.asarray(_geometry(lambda: instance_sdf(self, pts)))
         if not _finite(d):
             raise self._evaluation("a signed distance", self._shapes_where())
@@ -186,6 +202,7 @@ class Instance:
 
         n = as_count("n", n, 0, MAX_SAMPLES)
         seed = as_count("seed", seed, 0, 2**64 - 1)
+        self._check_links()
         points, normals = _geometry(lambda: instance_samples(self, n, seed))
         if not (_finite(points) and _finite(normals)):
             raise self._evaluation("a surface sample", self._shapes_where())

@@ -128,6 +128,9 @@ def test_overflowing_formulas_raise_instead_of_returning_inf(poison: eac.Concept
         lambda: inst.link_pose("flap"),
         lambda: inst.force("turn", grasp=flap),
         lambda: inst.follow("turn", grasp=flap, to=0.1),
+        lambda: inst.mesh(8),
+        lambda: inst.sdf([[0.0, 0.0, 0.0]]),
+        lambda: inst.sample_surface(5),
     ):
         with pytest.raises(EvaluationError, match=r"not finite.*poison\.eac"):
             call()
