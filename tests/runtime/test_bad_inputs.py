@@ -295,3 +295,15 @@ def test_a_bad_gripper_is_a_parameter_error(change: dict[str, Any]) -> None:
 def test_a_bad_opening_is_a_parameter_error(width: Any) -> None:
     with pytest.raises(eac.ParameterError):
         eac.Gripper.panda().finger_boxes(width)
+
+
+def test_the_limits_are_the_documented_ones() -> None:
+    from pathlib import Path
+
+    from grace_dsl.runtime.inputs import MAX_COORDINATE
+
+    text = (Path(__file__).parents[2] / "docs" / "api.md").read_text()
+    section = text[text.index("**Limits.**") :][:1200]
+    for limit in (MAX_GRASPS, MAX_SAMPLES, MAX_STEPS, MAX_RANK_SAMPLES, MAX_RESOLUTION):
+        assert f"{limit:,}" in section, limit
+    assert f"{MAX_COORDINATE:g}" in section
