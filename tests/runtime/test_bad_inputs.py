@@ -179,15 +179,13 @@ ATOMS = st.one_of(
         [np.eye(4), np.eye(4).tolist(), np.eye(3), np.full((4, 4), np.nan), [[0.0, 0.0, 0.0]]]
     ),
 )
-JUNK = st.recursive(
+NESTED = st.one_of(
     ATOMS,
-    lambda inner: st.one_of(
-        st.lists(inner, max_size=4),
-        st.tuples(inner, inner, inner),
-        st.dictionaries(st.text(max_size=3), inner, max_size=3),
-    ),
-    max_leaves=12,
+    st.lists(ATOMS, max_size=4),
+    st.tuples(ATOMS, ATOMS, ATOMS),
+    st.dictionaries(st.text(max_size=3), ATOMS, max_size=3),
 )
+JUNK = st.one_of(NESTED, st.lists(NESTED, max_size=4), st.tuples(NESTED, NESTED, NESTED))
 NAMES = st.one_of(
     st.sampled_from(["handle.pull", "open", "hinge", "leaf", "rim", "SunkenDoor", "push_edge"]),
     JUNK,
