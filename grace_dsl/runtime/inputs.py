@@ -94,6 +94,13 @@ def as_count(what: str, value: Any, least: int, most: int) -> int:
 
 def as_pose(value: Any, what: str = "pose") -> np.ndarray:
     """A validated rigid 4x4 pose, a fresh array the caller owns (the identity for None)."""
+    if (
+        type(value) is np.ndarray
+        and value.shape == (4, 4)
+        and value.dtype == np.float64
+        and _plainly_rigid(value.tolist())
+    ):
+        return value.copy()  # the common case, without a second call
     return np.eye(4) if value is None else check_pose(value, what).copy()
 
 
@@ -178,7 +185,11 @@ def _plainly_rigid(rows: list[list[float]]) -> bool:
     if (
         last != [0.0, 0.0, 0.0, 1.0]
         or not math.isfinite(a + b + c + d + e + f + g + h + i + x + y + z)
-        or not (abs(x) <= MAX_COORDINATE and abs(y) <= MAX_COORDINATE and abs(z) <= MAX_COORDINATE)
+        or not (
+            -MAX_COORDINATE <= x <= MAX_COORDINATE
+            and -MAX_COORDINATE <= y <= MAX_COORDINATE
+            and -MAX_COORDINATE <= z <= MAX_COORDINATE
+        )
     ):
         return False
     tol = 1e-6  # columns orthonormal: R^T R = I, and no mirror: det R = +1

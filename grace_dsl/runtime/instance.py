@@ -419,7 +419,7 @@ class Instance:
         i = self.concept.joint_index[joint]
         lo, hi = self._limits[0][i], self._limits[1][i]
         to = as_number(f"joint {joint}", to)
-        if not lo - _TOL <= to <= hi + _TOL:
+        if not (lo - _TOL <= to <= hi + _TOL and math.isfinite(to)):
             raise ParameterError(f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}]")
         q0 = float(self.q[i])
         if spec.sign * (to - q0) < 0:
@@ -486,10 +486,8 @@ def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -
                 if concept.moving_joints
                 else f"{concept.name} has no moving joints (asked for {name!r})"
             )
-        v = float(value) if type(value) in (float, int) and abs(value) < 1e300 else None
-        if v is None:
-            v = as_number(f"joint {name} (rad or m)", value)
-        if not lo[i] - _TOL <= v <= hi[i] + _TOL:  # NaN fails too
+        v = value if type(value) is float else as_number(f"joint {name} (rad or m)", value)
+        if not (lo[i] - _TOL <= v <= hi[i] + _TOL and math.isfinite(v)):  # NaN fails too
             raise ParameterError(
                 f"joint {name} = {v!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
             )

@@ -137,6 +137,20 @@ def test_overflowing_formulas_raise_instead_of_returning_inf(poison: eac.Concept
     assert np.isfinite(inst.twist("turn")).all()  # the axis itself does not overflow
 
 
+def test_a_continuous_joint_refuses_infinite_values(lib: eac.Library) -> None:
+    """A continuous joint's range is (-inf, inf); an infinite value is still refused."""
+    faucet = lib["KnobFaucet"]
+    with pytest.raises(eac.ParameterError, match="spindle"):
+        faucet.instantiate(joints={"spindle": math.inf})
+    inst = faucet.instantiate()
+    with pytest.raises(eac.ParameterError, match="spindle"):
+        inst.with_joints(spindle=-math.inf)
+    action = next(a for a, s in faucet.actions.items() if s.opening and s.joint == "spindle")
+    g = inst.grasp(faucet.actions[action].using[0] if faucet.actions[action].using else "grip")
+    with pytest.raises(eac.ParameterError, match="cannot reach"):
+        inst.follow(action, grasp=g, to=math.inf)
+
+
 def test_on_the_axis_is_still_a_parameter_error(lib: eac.Library) -> None:
     """A grasp on a turning joint's axis has no linear force: that stays a ParameterError
     pointing to twist, not an EvaluationError."""
