@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from grace_dsl.runtime.errors import (
     CompileError,
+    EvaluationError,
     GraceError,
     ParameterError,
     RequirementError,
@@ -70,6 +71,7 @@ __all__ = [
     "solve_ik",
     "CompileError",
     "Concept",
+    "EvaluationError",
     "GraceError",
     "Gripper",
     "Instance",

@@ -8,6 +8,7 @@ two pictures agree; ``Scene.segments()`` turns the decorations into coloured lin
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -248,7 +249,7 @@ def _forces(inst: Instance, notes: list[str]) -> list[Force]:
     return out
 
 
-def _subtree(link: str, joints: dict[str, Any]) -> list[str]:
+def _subtree(link: str, joints: Mapping[str, Any]) -> list[str]:
     """``link`` and every link below it."""
     out = [link]
     for j in joints.values():

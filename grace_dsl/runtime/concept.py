@@ -16,6 +16,7 @@ import numpy as np
 from grace_dsl.compiler.types import format_si
 from grace_dsl.lang.diagnostics import closest
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
+from grace_dsl.runtime.inputs import as_array, show_value
 
 Evaluate = Callable[..., Any]
 
@@ -71,22 +72,25 @@ class ParamSpec:
                 raise ParameterError(f"{self.name} is a bool, not {value!r}")
             return np.array([float(value)])
         if _has_bool(value):
-            raise ParameterError(f"{self.name} is a {self.type}, not a bool: got {value!r}")
+            raise ParameterError(
+                f"{self.name} is a {self.type}, not a bool: got {show_value(value)}"
+            )
         try:
-            arr = np.asarray(value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
+            arr = as_array(self.name, value)
+        except ParameterError:
             raise ParameterError(
                 f"{self.name} must be {'a number' if self.size == 1 else f'{self.size} numbers'}"
-                f" ({self.type}), not {value!r}"
+                f" ({self.type}), not {show_value(value)}"
             ) from None
+        arr = arr.reshape(-1)
         if arr.size != self.size:
             raise ParameterError(
                 f"{self.name} takes {self.size} value(s) ({self.type}), got {arr.size}"
             )
         if not np.all(np.isfinite(arr)):
-            raise ParameterError(f"{self.name} must be finite, got {value!r}")
+            raise ParameterError(f"{self.name} must be finite, got {show_value(value)}")
         if self.kind == "int" and not np.all(arr == np.round(arr)):
-            raise ParameterError(f"{self.name} is an int, got {value!r}")
+            raise ParameterError(f"{self.name} is an int, got {show_value(value)}")
         self._check_range(arr)
         return arr
 
@@ -94,7 +98,8 @@ class ParamSpec:
         if self.lo is None:
             return
         lo, hi = np.atleast_1d(self.lo), np.atleast_1d(self.hi)
-        if np.any(arr < lo - 1e-12) or np.any(arr > hi + 1e-12):
+        # written so that a NaN bound fails the check instead of disabling it
+        if not (np.all(arr >= lo - 1e-12) and np.all(arr <= hi + 1e-12)):
             raise ParameterError(
                 f"{self.name} = {format_si(arr, self.dim)} is outside its range "
                 f"[{format_si(lo, self.dim)}, {format_si(hi, self.dim)}] (values are in SI units: "
@@ -122,8 +127,10 @@ def _has_bool(value: Any) -> bool:
     return isinstance(value, (tuple, list)) and any(isinstance(v, (bool, np.bool_)) for v in value)
 
 
-def suggest(name: str, known: Any) -> str:
+def suggest(name: Any, known: Any) -> str:
     """The tail of an unknown-name error: the likely name, or every known one."""
+    if not isinstance(name, str):
+        return f"; names are strings, not {type(name).__name__}; known: {', '.join(known)}"
     match = closest(name, known)
     return f"; did you mean {match!r}?" if match else f"; known: {', '.join(known)}"
 
@@ -195,7 +202,10 @@ def _put_fast(p: np.ndarray, slot: _Slot, value: Any) -> bool:
     (the caller then takes the validating path, which raises the right error)."""
     offset, size, lo, hi = slot
     if size == 1 and type(value) in _FLOATS:
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:  # an int beyond float: the validating path words the error
+            return False
         # NaN fails every comparison, inf the range
         ok = math.isfinite(v) if lo is None or hi is None else lo[0] <= v <= hi[0]
         if ok:
@@ -207,7 +217,10 @@ def _put_fast(p: np.ndarray, slot: _Slot, value: Any) -> bool:
     for k, x in enumerate(value):
         if type(x) not in _FLOATS:
             return False
-        v = float(x)
+        try:
+            v = float(x)
+        except OverflowError:
+            return False
         if not (math.isfinite(v) if lo is None or hi is None else lo[k] <= v <= hi[k]):
             return False
         vs.append(v)

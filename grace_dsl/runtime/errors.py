@@ -40,3 +40,8 @@ class ParameterError(GraceError, ValueError):
 
 class RequirementError(ParameterError):
     """Parameter values that violate one of the concept's ``require`` constraints."""
+
+
+class EvaluationError(GraceError, ArithmeticError):
+    """A compiled formula gave a non-finite value (NaN, inf) at these inputs; the message names
+    the formula's ``file:line`` (or its concept and member) and the values it was given."""

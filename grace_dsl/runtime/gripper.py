@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.inputs import as_array, as_number
 
 
 @dataclass(frozen=True)
@@ -46,19 +47,21 @@ class Gripper:
             "finger_length": self.finger_length,
         }
         for field_name, value in sizes.items():
+            value = as_number(f"gripper {self.name}: {field_name}", value)
             if not math.isfinite(value) or value < 0 or (value == 0 and field_name != "max_width"):
                 raise ParameterError(
                     f"gripper {self.name}: {field_name} must be a finite positive length in "
                     f"metres, got {value!r}"
                 )
         if self.approach is not None:
-            a = np.asarray(self.approach, dtype=float)
+            a = as_array(f"gripper {self.name}: approach", self.approach)
             if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9:
                 raise ParameterError(
                     f"gripper {self.name}: approach must be a non-zero world direction (x, y, z) "
                     f"or None, got {self.approach!r}"
                 )
-        if not 0.0 <= self.approach_tolerance <= math.pi:
+        tolerance = as_number(f"gripper {self.name}: approach_tolerance", self.approach_tolerance)
+        if not 0.0 <= tolerance <= math.pi:
             raise ParameterError(
                 f"gripper {self.name}: approach_tolerance must lie in [0, pi] radians, got "
                 f"{self.approach_tolerance!r}"
@@ -85,6 +88,7 @@ class Gripper:
     def finger_boxes(self, width: float) -> tuple[FingerBox, FingerBox]:
         """The two pads in the gripper frame at opening ``width`` (inner faces ``width`` apart):
         the one on -y first. Width 0 is the closed hand, pads touching."""
+        width = as_number("width", width)
         if not math.isfinite(width) or not 0.0 <= width <= self.max_width + 1e-12:
             raise ParameterError(
                 f"{self.name} opens 0-{self.max_width * 1e3:g} mm; cannot open to "
@@ -103,7 +107,7 @@ class Gripper:
 def box_surface_grid(box: FingerBox, spacing: float) -> np.ndarray:
     """(N, 3) points on a box's surface, a grid at most ``spacing`` apart on each face, in the
     frame ``box.pose`` maps to (corners and edges included once per face that holds them)."""
-    if not spacing > 0:
+    if not as_number("spacing", spacing) > 0:
         raise ParameterError(f"spacing must be a positive length, got {spacing!r}")
     h = np.asarray(box.half_extents, dtype=float)
     ticks = [np.linspace(-e, e, max(2, math.ceil(2 * e / spacing) + 1)) for e in h]

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator, Mapping, Sequence
-from functools import cached_property
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,9 @@ from grace_dsl.compiler.unit import KEY, UNIT_FORMAT, Unit, UnitError, load_unit
 from grace_dsl.lang.diagnostics import render_all
 from grace_dsl.runtime.concept import ParamPacker, ParamSpec, suggest
 from grace_dsl.runtime.errors import CompileError, UnknownNameError
+from grace_dsl.runtime.inputs import merge_names
 from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.specs import ActionSpec, GraspSpec, JointSpec, LinkSpec, PartSpec
 
 
 class _UnitFunctions:
@@ -37,7 +39,10 @@ class _UnitFunctions:
 
 
 class Concept:
-    """A compiled concept; ``instantiate`` it with parameter values to get an ``Instance``."""
+    """A compiled concept; ``instantiate`` it with parameter values to get an ``Instance``.
+
+    ``grasps``, ``actions`` and ``joints`` map names to typed specs (``GraspSpec``...), built once
+    from the manifest; a spec still reads like the manifest entry (``spec["link"]``)."""
 
     def __init__(self, entry: Mapping[str, Any], functions: _UnitFunctions):
         self.entry = entry
@@ -45,20 +50,33 @@ class Concept:
         self.name: str = entry["name"]
         self.doc: str = entry["doc"]
         self.params: tuple[ParamSpec, ...] = tuple(ParamSpec.from_entry(p) for p in entry["params"])
-        self.grasps: dict[str, dict[str, Any]] = {g["name"]: g for g in entry["grasps"]}
-        self.actions: dict[str, dict[str, Any]] = {a["name"]: a for a in entry["actions"]}
-        self.joints: dict[str, dict[str, Any]] = {j["name"]: j for j in entry["joints"]}
+        self.grasps: Mapping[str, GraspSpec] = MappingProxyType(
+            {g["name"]: GraspSpec.of(g, entry) for g in entry["grasps"]}
+        )
+        self.actions: Mapping[str, ActionSpec] = MappingProxyType(
+            {a["name"]: ActionSpec.of(a, entry) for a in entry["actions"]}
+        )
+        self.joints: Mapping[str, JointSpec] = MappingProxyType(
+            {j["name"]: JointSpec.of(j, entry) for j in entry["joints"]}
+        )
         self.links: tuple[str, ...] = tuple(link["name"] for link in entry["links"])
-        self.parts: dict[str, str] = dict(entry["parts"])
+        self.link_specs: Mapping[str, LinkSpec] = MappingProxyType(
+            {k["name"]: LinkSpec(k["name"], k.get("doc", "")) for k in entry["links"]}
+        )
+        self.parts: Mapping[str, str] = MappingProxyType(dict(entry["parts"]))
+        self.part_specs: Mapping[str, PartSpec] = MappingProxyType(
+            {n: PartSpec(n, c) for n, c in entry["parts"].items()}
+        )
+        moving = sorted((j for j in self.joints.values() if j.moving), key=lambda j: j.index or 0)
+        self.moving_joints: tuple[str, ...] = tuple(j.name for j in moving)
+        self.joint_index: Mapping[str, int] = MappingProxyType(
+            {n: i for i, n in enumerate(self.moving_joints)}
+        )
         self._packer = ParamPacker.of(self.params)
         self._evaluators: dict[str, native.Evaluator] = {}  # key -> evaluator, on first use
 
     def __repr__(self) -> str:
         return f"<Concept {self.name}: {len(self.params)} params, {len(self.grasps)} grasps>"
-
-    @cached_property
-    def moving_joints(self) -> tuple[str, ...]:
-        return tuple(j["name"] for j in self.entry["joints"] if j["index"] is not None)
 
     def function(self, kind: str, name: str = "") -> native.Evaluator:
         """The evaluator of function ``kind:name`` (see docs/architecture.md); prefer the typed
@@ -81,15 +99,23 @@ class Concept:
             for p in self.params
         }
 
-    def pack(self, **values: Any) -> np.ndarray:
-        """The flat SI parameter vector of ``values`` (defaults for the rest), validated."""
-        return self._packer.pack(values, self.name)
+    def pack(self, params: Mapping[str, Any] | None = None, /, **values: Any) -> np.ndarray:
+        """The flat SI parameter vector of ``params``/``values`` (defaults for the rest)."""
+        return self._packer.pack(merge_names("params", params, values), self.name)
 
     def instantiate(
-        self, pose: Any = None, joints: Mapping[str, float] | None = None, **params: Any
-    ) -> Any:
-        """An instance at ``pose`` (4x4, world from concept) with joint values and parameters."""
-        return Instance.create(self, pose, joints or {}, params)
+        self,
+        /,
+        pose: Any = None,
+        joints: Mapping[str, Any] | None = None,
+        params: Mapping[str, Any] | None = None,
+        **values: Any,
+    ) -> Instance:
+        """An instance at ``pose`` (4x4, world from concept) with joint values and parameters.
+
+        Parameters are keywords, or the mapping ``params`` (which also carries names that are
+        arguments here: a parameter called ``pose``, ``joints`` or ``params``)."""
+        return Instance.create(self, pose, joints, merge_names("params", params, values))
 
 
 class Library(Mapping[str, Concept]):
@@ -104,6 +130,10 @@ class Library(Mapping[str, Concept]):
                 self._concepts[name] = Concept(entry, functions)
 
     def __getitem__(self, name: str) -> Concept:
+        if not isinstance(name, str):
+            raise UnknownNameError(
+                f"concept names are strings, not {type(name).__name__} {name!r:.60}"
+            )
         try:
             return self._concepts[name]
         except KeyError:

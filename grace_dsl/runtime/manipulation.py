@@ -22,7 +22,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
-from grace_dsl.runtime.instance import TWIST_VERBS
+from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
+from grace_dsl.runtime.sampling import spread
+from grace_dsl.runtime.specs import ActionSpec
+from grace_dsl.runtime.symmetry import spin_about
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.gripper import Gripper
@@ -63,34 +66,32 @@ def rank(
     reference: Any = None,
 ) -> tuple[Option, ...]:
     """Every manipulation function of ``action``, best first (see the module docstring)."""
-    entry = inst._action(action)
-    if samples < 1:
-        raise ParameterError(f"samples must be positive, got {samples}")
-    options = [_judge(inst, entry, g, gripper, samples, reference) for g in candidates(inst, entry)]
+    spec = inst._action_spec(action)
+    samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
+    options = [_judge(inst, spec, g, gripper, samples, reference) for g in candidates(inst, spec)]
     return tuple(sorted(options, key=Option.sort_key))
 
 
-def candidates(inst: Instance, entry: dict[str, Any]) -> list[str]:
+def candidates(inst: Instance, action: ActionSpec) -> list[str]:
     """The grasps an action names with ``using``; else every grasp on the link it moves."""
-    if entry["using"]:
-        return list(entry["using"])
-    joint = entry["joint"]
-    if joint is None:
+    if action.using:
+        return list(action.using)
+    if action.joint is None:
         return list(inst.concept.grasps)
-    child = inst.concept.joints[joint]["child"]
-    return [n for n, g in inst.concept.grasps.items() if g["link"] == child]
+    child = inst.concept.joints[action.joint].child
+    return [n for n, g in inst.concept.grasps.items() if g.link == child]
 
 
 def _judge(
     inst: Instance,
-    action: dict[str, Any],
+    action: ActionSpec,
     name: str,
     gripper: Gripper,
     samples: int,
     reference: Any,
 ) -> Option:
     g = inst.concept.grasps[name]
-    mode = g.get("mode", "pinch")
+    mode = g.mode
     reasons = list(_hand_reasons(inst, name, mode, gripper))
     poses, free = _poses(inst, name, samples, reference)
     tilt = _tilt(poses, gripper)
@@ -99,9 +100,7 @@ def _judge(
     within = tilt <= gripper.approach_tolerance + 1e-9
     usable = force_ok & within
     if not force_ok.any():
-        reasons.append(
-            f"a {mode} contact cannot apply the force of {action['name']} here: {why[0]}"
-        )
+        reasons.append(f"a {mode} contact cannot apply the force of {action.name} here: {why[0]}")
     elif not usable.any():
         reasons.append(
             f"the hand would tilt {math.degrees(float(tilt[force_ok].min())):.0f} deg from its "
@@ -117,7 +116,7 @@ def _judge(
         free[best],
         poses[best],
         tuple(reasons),
-        g.get("doc", ""),
+        g.doc,
     )
 
 
@@ -139,15 +138,12 @@ def _poses(
 ) -> tuple[np.ndarray, list[dict[str, float]]]:
     """Poses over the free-parameter box, and for grasps symmetric about an axis that is not the
     approach, over spins as well (the spin changes where the hand comes from)."""
-    from grace_dsl.runtime.instance import _spread
-    from grace_dsl.runtime.symmetry import spin_about
-
     ranges = inst.grasp_range(name)
-    values = _spread(list(ranges.values()), samples)
+    values = spread(list(ranges.values()), samples)
     poses = inst.grasps(name, samples, reference=reference)
     free = [dict(zip(ranges, map(float, row))) for row in values]
     g = inst.concept.grasps[name]
-    if not g.get("symmetric") or g.get("demands", {}).get("orientation") == "approach":
+    if not g.symmetric or g.approach_symmetric:
         return poses, free
     axes = np.asarray(inst.concept.function("grasp_axis", name).batch(inst.p, values))
     spins = np.linspace(0.0, 2 * math.pi, SPIN_STEPS, endpoint=False)
@@ -163,14 +159,14 @@ def _tilt(poses: np.ndarray, gripper: Gripper) -> np.ndarray:
     return np.arccos(np.clip(poses[:, :3, 2] @ want, -1.0, 1.0))
 
 
-def _contact(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray) -> str | None:
+def _contact(inst: Instance, action: ActionSpec, mode: str, pose: np.ndarray) -> str | None:
     """Why a contact of this mode cannot apply the action's force at this pose (None: it can)."""
     try:
-        f = inst.force(action["name"], grasp=pose)
-    except ParameterError:  # a twist (on the joint's axis, or a fixed axis): only a grip turns it
-        if action["verb"] in TWIST_VERBS and mode == "pinch":
-            return None
-        return "the action turns the hand here (no linear force), which only a grip can do"
+        if action.fixed_twist:
+            return _twist_contact(action, mode)
+        f = inst.force(action.name, grasp=pose)
+    except ParameterError:  # on the joint's axis: a twist, and only a grip turns the hand
+        return _twist_contact(action, mode)
     along = float(f @ pose[:3, 2])
     if mode in ("push", "press") and along < math.cos(CONTACT_CONE):
         deg = math.degrees(math.acos(max(-1.0, min(1.0, along))))
@@ -184,3 +180,10 @@ def _contact(inst: Instance, action: dict[str, Any], mode: str, pose: np.ndarray
                 "instead of pressing them onto it"
             )
     return None
+
+
+def _twist_contact(action: ActionSpec, mode: str) -> str | None:
+    """A twist (about a fixed axis, or a joint's axis through the grasp): only a grip turns it."""
+    if action.turns and mode == "pinch":
+        return None
+    return "the action turns the hand here (no linear force), which only a grip can do"

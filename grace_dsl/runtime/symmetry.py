@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from grace_dsl.runtime.inputs import as_rotation
+
 # The Panda's hand at its ready pose, in the robot's base frame: approaching straight down (+z of
 # the gripper along world -z) with the fingers closing along world -y.  The default reference:
 # the minimal rotation from it is the smallest wrist turn away from where the arm starts.
@@ -85,19 +87,5 @@ def spin_to_reference(poses: np.ndarray, axes: np.ndarray, reference: Any) -> np
     return out
 
 
-def _is_rotation(r: np.ndarray) -> bool:
-    return bool(np.abs(r.T @ r - np.eye(3)).max() < 1e-6 and np.linalg.det(r) > 0)
-
-
 def _reference(reference: Any) -> np.ndarray:
-    from grace_dsl.runtime.errors import ParameterError
-
-    r = HAND_HOME if reference is None else np.asarray(reference, dtype=float)
-    if r.shape == (4, 4):
-        r = r[:3, :3]
-    if r.shape != (3, 3) or not np.all(np.isfinite(r)) or not _is_rotation(r):
-        raise ParameterError(
-            "reference must be a rotation (3x3, orthonormal, det +1) or a pose (4x4), e.g. the "
-            f"hand's current orientation; got {r.shape} {'values' if r.shape == (3, 3) else ''}"
-        )
-    return r
+    return HAND_HOME if reference is None else as_rotation(reference)

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import grace_dsl as eac
 from grace_dsl.runtime.concept import ParamSpec, suggest
 from grace_dsl.runtime.errors import GraceError, ParameterError, UnknownNameError
+from grace_dsl.runtime.inputs import MAX_COORDINATE, check_pose
 from grace_dsl.runtime.instance import _pose
 
 SOURCE = """
@@ -128,6 +129,8 @@ def numpy_pose_check(value: Any) -> Any:
     r = m[:3, :3]
     if np.abs(r.T @ r - np.eye(3)).max() > 1e-6 or np.abs(m[3] - (0, 0, 0, 1)).max() > 1e-12:
         return "not rigid"
+    if np.abs(m[:3, 3]).max() > MAX_COORDINATE:
+        return "too far"
     return m
 
 
@@ -150,13 +153,16 @@ def test_pose_checks_agree(seed: int, entry: tuple[int, int], delta: float, scal
     m[entry] += delta
     want = numpy_pose_check(m)
     try:
-        got = _pose(m)
+        got = check_pose(m)
     except ParameterError as err:
         assert isinstance(want, str), err
         assert ("finite" in str(err)) == (want == "not finite")
+        assert ("within" in str(err)) == (want == "too far")
     else:
         assert not isinstance(want, str), (want, m)
-        assert got is m  # a valid float64 array is used as given, not copied
+        assert got is m  # a valid float64 array is checked as given, not copied
+        owned = _pose(m)  # what an instance keeps: a copy
+        assert owned is not m and np.array_equal(owned, m)
 
 
 def test_pose_accepts_lists_and_rejects_shapes() -> None:
