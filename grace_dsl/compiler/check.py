@@ -222,6 +222,37 @@ class _ConceptChecker:
     def _let_type(self, name: str) -> Type:
         if name in self.let_types:
             return self.let_types[name]
+        if not self.visiting:  # type what it reads first: no recursion along a chain of lets
+            for dep in self._lets_first(name)[:-1]:
+                self._type_let(dep)
+        return self._type_let(name)
+
+    def _lets_first(self, name: str) -> list[str]:
+        """``name`` and the untyped lets it reads, dependencies first (iterative).  On a cycle
+        just ``[name]``: ``_type_let`` then walks to it and reports it from ``name``."""
+        order: list[str] = []
+        seen, path = {name}, {name}
+        stack = [(name, iter(ast.names_in(self.lets[name].value)))]
+        while stack:
+            node, reads = stack[-1]
+            for n in reads:
+                dep = n.id
+                if dep in path:
+                    return [name]
+                if dep in self.lets and dep not in seen and dep not in self.let_types:
+                    seen.add(dep)
+                    path.add(dep)
+                    stack.append((dep, iter(ast.names_in(self.lets[dep].value))))
+                    break
+            else:
+                stack.pop()
+                path.discard(node)
+                order.append(node)
+        return order
+
+    def _type_let(self, name: str) -> Type:
+        if name in self.let_types:
+            return self.let_types[name]
         let = self.lets[name]
         if name in self.visiting:
             cycle = " -> ".join([*self.visiting[self.visiting.index(name) :], name])

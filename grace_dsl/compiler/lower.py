@@ -22,7 +22,7 @@ from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
 from grace_dsl.compiler.check import VERBS, Checked, CheckedConcept
 from grace_dsl.compiler.cues import shape_cue
-from grace_dsl.compiler.evaluate import Evaluator
+from grace_dsl.compiler.evaluate import Evaluator, definition_needs
 from grace_dsl.compiler.resolve import BASE_LINK
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
@@ -164,7 +164,6 @@ class _Instance:
         lets = {m.name: m for m in _all(decl) if isinstance(m, ast.Let)}
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
         args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
-
         shapes = {m.name: m for m in _all(decl) if isinstance(m, ast.Shape)}
 
         def on_demand(name: str) -> Any:  # lets, part arguments, shape cues; no cycles (checker)
@@ -174,7 +173,8 @@ class _Instance:
             return ev(lets[name].value if name in lets else args[name])
 
         qualified = frozenset([*(m.name for m in parts), *shapes])
-        ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified)
+        needs = definition_needs(lets, args, shapes)
+        ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified, needs)
         part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
         # links and joints
         link_of = {BASE_LINK: host_link}
@@ -343,7 +343,7 @@ class _Instance:
             free.append(FreeInfo(fp.name, cc.free_types[g.name][fp.name], lo, hi, default))
             symbols.append(sym)
         free_env = dict(zip((f.name for f in g.free), symbols))
-        sub = Evaluator(self.b, ev.types, {**ev.env, **free_env}, ev.lazy, ev.parts)
+        sub = ev.with_names(free_env)
         pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
         width = sub(g.width) if g.width is not None else None
         axis = None

@@ -15,7 +15,7 @@ import numpy as np
 
 from grace_dsl.compiler.backends import NUMPY
 from grace_dsl.compiler.cues import shape_cue
-from grace_dsl.compiler.evaluate import Evaluator
+from grace_dsl.compiler.evaluate import Evaluator, definition_needs
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type, format_si
 from grace_dsl.lang import ast
@@ -248,7 +248,7 @@ class _ValueChecker:
                     fp.default.span,
                     f"the range is [{format_si(float(lo), dim)}, {format_si(float(hi), dim)}]",
                 )
-        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy, ev.parts)
+        sub = ev.with_names(free)
         self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
         if g.width is not None:
             self._finite(sub(g.width), g.width.span, f"the width of grasp `{g.name}`")
@@ -316,7 +316,9 @@ def evaluator_at(
         prim = done.get(call.func) if isinstance(call, ast.Call) else None
         return shape_cue(NUMPY, ev, shape, dict(prim.defaults) if prim else {}, field)
 
-    ev = Evaluator(NUMPY, types, env, value, frozenset([*(p.name for p in parts), *shapes]))
+    needs = definition_needs(lets, {k: a.value for k, a in args.items()}, shapes)
+    qualified = frozenset([*(p.name for p in parts), *shapes])
+    ev = Evaluator(NUMPY, types, env, value, qualified, needs)
     return ev
 
 
