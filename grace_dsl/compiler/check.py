@@ -17,6 +17,7 @@ import numpy as np
 from grace_dsl.compiler import types as T
 from grace_dsl.compiler.cues import CUE_TYPES, has_cue
 from grace_dsl.compiler.evaluate import BUILTINS
+from grace_dsl.compiler.intervals import check_intervals
 from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
 from grace_dsl.compiler.values import SET_OPS, check_values
@@ -139,6 +140,8 @@ class _ConceptChecker:
         if result.ok:
             self.diags += check_values(result, self.done, self.types)
             result.ok = not self.diags
+        if result.ok:
+            self.diags += check_intervals(result, self.done, self.types)
         return result
 
     def _member(self, m: ast.Member_) -> None:

@@ -34,6 +34,7 @@ class Evaluator:
         lazy: Callable[[str], Any] | None = None,
         parts: frozenset[str] = frozenset(),
         needs: Needs | None = None,
+        observe: Callable[[ast.Expr, Any], None] | None = None,
     ):
         self.b = backend
         self.types = types
@@ -41,18 +42,23 @@ class Evaluator:
         self.lazy = lazy
         self.parts = parts  # names whose members are parameters of a part: ``handle.r_in``
         self.needs = needs
+        self.observe = observe  # called with every expression node and its value
         self._computing: set[str] = set()
 
     def with_names(self, extra: Mapping[str, Any]) -> Evaluator:
         """The same evaluator with more names bound (a grasp's free parameters)."""
-        return Evaluator(self.b, self.types, {**self.env, **extra}, self.lazy, self.parts, self.needs)
+        env = {**self.env, **extra}
+        return Evaluator(self.b, self.types, env, self.lazy, self.parts, self.needs, self.observe)
 
     def type_of(self, e: ast.Expr) -> Type:
         return self.types[id(e)]
 
     def __call__(self, e: ast.Expr) -> Any:
         method: Callable[[Any], Any] = getattr(self, "_" + type(e).__name__.lower())
-        return method(e)
+        value = method(e)
+        if self.observe is not None:
+            self.observe(e, value)
+        return value
 
     # -- leaves
     def _number(self, e: ast.Number) -> Any:

@@ -9,11 +9,12 @@ a host reads its parts' defaults from ``done``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.compiler.backends import NUMPY
+from grace_dsl.compiler.backends import NUMPY, Backend
 from grace_dsl.compiler.cues import shape_cue
 from grace_dsl.compiler.evaluate import Evaluator, definition_needs
 from grace_dsl.compiler.resolve import flat_members
@@ -129,6 +130,8 @@ class _ValueChecker:
             lo = hi = None
             if p.bounds is not None:
                 lo, hi = ev(p.bounds.lo), ev(p.bounds.hi)
+                if not self._finite_constant(name, "bound", (p.bounds.lo, lo), (p.bounds.hi, hi)):
+                    continue
                 if np.any(np.asarray(lo) > np.asarray(hi)):
                     self.err(
                         "E208",
@@ -140,6 +143,10 @@ class _ValueChecker:
                 out.bounds[name] = (lo, hi)
             if p.default is not None:
                 value = ev(p.default)
+                if t.kind in ("num", "vec") and not self._finite_constant(
+                    name, "default", (p.default, value)
+                ):
+                    continue
                 if t.kind == "choice":
                     value = float(t.choices.index(value))
                 elif t.kind == "bool":
@@ -170,6 +177,21 @@ class _ValueChecker:
                     f"the range is [{format_si(lo, t.dim)}, {format_si(hi, t.dim)}]",
                 )
             out.defaults[name] = value
+
+    def _finite_constant(self, name: str, what: str, *values: tuple[ast.Expr, Any]) -> bool:
+        """A parameter's bound or default must be a finite number: a NaN bound would switch
+        range checks off, an infinite one makes the range meaningless."""
+        for expr, value in values:
+            if not np.all(np.isfinite(np.asarray(value, dtype=float))):
+                self.err(
+                    "E225",
+                    f"the {what} of `{name}` is not a finite number",
+                    expr.span,
+                    "ranges and defaults are finite numbers; look for a division by zero, "
+                    "the square root of a negative number or an overflow",
+                )
+                return False
+        return True
 
     def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
         name = getattr(m, "name", None)
@@ -277,10 +299,13 @@ def evaluator_at(
     values: dict[str, Any],
     done: dict[str, CheckedConcept],
     types: dict[int, Type],
+    backend: Backend = NUMPY,
+    observe: Callable[[ast.Expr, Any], None] | None = None,
 ) -> Evaluator | None:
-    """A NumPy evaluator of ``decl`` with parameter ``values``: lets and part arguments are
+    """An evaluator of ``decl`` with parameter ``values``: lets and part arguments are
     computed on demand (raising ``_Cycle`` on a loop), a part's unbound parameters take their
-    concept's defaults.  None when a part's concept did not check."""
+    concept's defaults unless ``values`` gives them (``handle.r_in``).  None when a part's
+    concept did not check.  NumPy by default; the interval pass uses its own backend."""
     lets = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Let)}
     parts = [m for m in flat_members(decl) if isinstance(m, ast.Part)]
     args = {f"{p.name}.{a.name}": a for p in parts for a in p.args if a.name}
@@ -293,7 +318,7 @@ def evaluator_at(
             {
                 f"{part.name}.{k}": v
                 for k, v in sub.defaults.items()
-                if f"{part.name}.{k}" not in args
+                if f"{part.name}.{k}" not in args and f"{part.name}.{k}" not in values
             }
         )
     shapes = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Shape)}
@@ -314,11 +339,11 @@ def evaluator_at(
     def _shape_cue(shape: ast.Shape, field: str) -> Any:
         call = shape.value
         prim = done.get(call.func) if isinstance(call, ast.Call) else None
-        return shape_cue(NUMPY, ev, shape, dict(prim.defaults) if prim else {}, field)
+        return shape_cue(backend, ev, shape, dict(prim.defaults) if prim else {}, field)
 
     needs = definition_needs(lets, {k: a.value for k, a in args.items()}, shapes)
     qualified = frozenset([*(p.name for p in parts), *shapes])
-    ev = Evaluator(NUMPY, types, env, value, qualified, needs)
+    ev = Evaluator(backend, types, env, value, qualified, needs, observe)
     return ev
 
 
