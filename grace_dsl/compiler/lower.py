@@ -54,6 +54,8 @@ class JointInfo:
     axis: Any  # unit axis in the concept frame at the current q of its parent (backend tuple)
     origin: Any  # a point on the axis, concept frame (backend tuple)
     doc: str
+    where: str = ""  # ``file.eac:line`` of the declaration
+    range_where: str = ""  # ``file.eac:line`` of its range
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class ActionInfo:
     direction: Any  # explicit direction, unit 3-tuple in the concept frame (or None)
     using: tuple[str, ...]
     doc: str
+    where: str = ""  # ``file.eac:line`` of the declaration (of its direction, if explicit)
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,7 @@ class ShapeInfo:
     operands: tuple[str, ...]  # for set operations: qualified shape names
     pose: Any  # 4x4 in the concept frame
     at: Any = None  # 4x4 placement in its declaring frame (what its `at` says; None: identity)
+    where: str = ""  # ``file.eac:line`` of the declaration
 
 
 @dataclass(frozen=True)
@@ -262,7 +266,16 @@ class _Instance:
         if j.kind == "fixed":
             self.out.joints.append(
                 JointInfo(
-                    name, j.kind, link_of[j.parent], link_of[j.child], None, None, None, None, j.doc
+                    name,
+                    j.kind,
+                    link_of[j.parent],
+                    link_of[j.child],
+                    None,
+                    None,
+                    None,
+                    None,
+                    j.doc,
+                    where(j.span),
                 )
             )
             return parent_pose
@@ -296,6 +309,8 @@ class _Instance:
                 world_axis,
                 world_origin,
                 j.doc,
+                where(j.span),
+                where(j.limits.span) if j.limits is not None else "",
             )
         )
         return se3.matmul(parent_pose, motion)
@@ -316,14 +331,16 @@ class _Instance:
         if v.func in ("union", "difference"):
             operands = tuple(prefix + a.value.id for a in v.args if isinstance(a.value, ast.Name))
             self.out.shapes.append(
-                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local)
+                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local, where(s.span))
             )
             return
         prim = self.checked.concepts[v.func]
         args = dict(prim.defaults)
         args.update({a.name: ev(a.value) for a in v.args if a.name is not None})
         args = {k: _as_backend(self.b, val) for k, val in args.items()}
-        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local))
+        self.out.shapes.append(
+            ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local, where(s.span))
+        )
 
     def _grasp(
         self,
@@ -380,6 +397,7 @@ class _Instance:
             direction,
             tuple(prefix + u for u in a.using),
             a.doc,
+            where(a.direction.span if a.direction is not None else a.span),
         )
 
     def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
@@ -409,8 +427,13 @@ def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:
 
 
 def _brief(r: ast.Require) -> str:
-    s = r.cond.span
-    return f"{PurePath(s.file).name}:{s.line}" if s.line else ""
+    return where(r.cond.span)
+
+
+def where(span: ast.Span) -> str:
+    """``file.eac:line`` of a span (the file's name only), or "" without a position: what the
+    manifest records so that runtime errors can point at the source of a formula."""
+    return f"{PurePath(span.file).name}:{span.line}" if span.line else ""
 
 
 def _unit(b: Backend, v: tuple[Any, ...]) -> tuple[Any, ...]:
