@@ -6,6 +6,7 @@ rules live in ``types.py``; a concept that type-checks is then evaluated at its 
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -22,7 +23,7 @@ from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
 from grace_dsl.compiler.values import SET_OPS, check_values
 from grace_dsl.lang import ast
-from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
+from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error, has_errors
 
 ERR = Type("error")
 JOINT_KINDS = ("revolute", "prismatic", "continuous", "fixed")
@@ -136,10 +137,10 @@ class _ConceptChecker:
         for m in self.decl.members:
             self._member(m)
         result = CheckedConcept(self.decl, self.file, self.param_types, self.free_types)
-        result.ok = not self.diags and not self.incomplete
+        result.ok = not has_errors(self.diags) and not self.incomplete
         if result.ok:
             self.diags += check_values(result, self.done, self.types)
-            result.ok = not self.diags
+            result.ok = not has_errors(self.diags)
         if result.ok:
             self.diags += check_intervals(result, self.done, self.types)
         return result
@@ -927,6 +928,8 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
         return ERR
 
     def angle_like(i: int) -> bool:
+        if kinds[i] == "num" and args[i].type.dim == SCALAR:
+            _bare_angle(c, e.args[i].value, args[i])
         return kinds[i] == "num" and args[i].type.dim in (ANGLE, SCALAR)
 
     if f in ("sin", "cos", "tan"):
@@ -1002,6 +1005,23 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
     if f == "inv":
         return args[0].type if kinds[0] in ("rot", "pose") else bad(0, "a rotation or pose")
     raise AssertionError(f"builtin without a type rule: {f}")
+
+
+def _bare_angle(c: _ConceptChecker, arg: ast.Expr, te: TE) -> None:
+    """``rotx(90)``: a bare non-zero constant where an angle is expected is radians, which is
+    rarely what was meant; a warning, since radians are the SI unit."""
+    if isinstance(te.const, (int, float)) and te.const != 0:
+        value = float(te.const)
+        c.diags.append(
+            Diagnostic(
+                "E237",
+                f"the bare number {value:g} is taken as {value:g} radians "
+                f"({math.degrees(value):g} degrees)",
+                arg.span,
+                f"write the unit: `{value:g}deg`, or `{value:g}rad` if radians are meant",
+                "warning",
+            )
+        )
 
 
 def _choice_hint(text: str, choices: tuple[str, ...]) -> str:

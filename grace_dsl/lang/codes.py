@@ -71,6 +71,7 @@ CODES: dict[str, str] = {
     "E234": "square root of an interval reaching below 0",
     "E235": "overflow or undefined value inside the ranges",
     "E236": "argument leaves its range inside the declared ranges",
+    "E237": "bare number where an angle is expected",
     # build and I/O
     "E301": "cache or output directory not writable",
 }
