@@ -17,7 +17,7 @@ import numpy as np
 
 from grace_dsl.compiler import types as T
 from grace_dsl.compiler.cues import CUE_TYPES, has_cue
-from grace_dsl.compiler.evaluate import BUILTINS
+from grace_dsl.compiler.evaluate import BUILTINS, dotted
 from grace_dsl.compiler.intervals import check_intervals
 from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
@@ -366,6 +366,11 @@ class _ConceptChecker:
             if a.name in seen:
                 self.err("E118", f"argument `{a.name}` is given twice", a.span, "keep one of them")
             seen.add(a.name)
+            if "." in a.name and what == "concept":
+                nested = self._nested_param(target, a)
+                if nested is not None:
+                    self.coerce(te, nested, a.value.span)
+                continue
             if a.name not in params:
                 self.err(
                     "E116",
@@ -683,6 +688,10 @@ class _ConceptChecker:
         part = self.members.get(e.obj.id) if isinstance(e.obj, ast.Name) else None
         if isinstance(part, ast.Part):
             return TE(self._part_param(part, e))
+        nested = self._part_path(e.obj) if isinstance(e.obj, ast.Member) else None
+        if nested is not None:
+            self.types[id(e.obj)] = T.PART
+            return TE(self._param_of(nested, e, f"`{dotted(e.obj)}`"))
         if isinstance(part, ast.Shape):
             return TE(self._shape_cue(part, e))
         te = self.expr(e.obj)
@@ -747,19 +756,85 @@ class _ConceptChecker:
     def _part_param(self, part: ast.Part, e: ast.Member) -> Type:
         """``handle.r_in``: a parameter of a part, as bound by its arguments or lifted."""
         self.types[id(e.obj)] = ERR
-        entry = self.prog.concepts.get(part.concept)
+        return self._param_of(part.concept, e, f"`{part.name}`")
+
+    def _param_of(self, concept: str, e: ast.Member, label: str) -> Type:
+        """Parameter ``e.field`` of the part ``label`` made with ``concept``."""
+        entry = self.prog.concepts.get(concept)
         if entry is None:
             return ERR
         params = {m.name: m for m in entry.decl.members if isinstance(m, ast.Param)}
         if e.field not in params:
+            parts = [m.name for m in flat_members(entry.decl) if isinstance(m, ast.Part)]
             self.err(
                 "E212",
-                f"part `{part.name}` ({part.concept}) has no parameter `{e.field}`",
+                f"part {label} ({concept}) has no parameter `{e.field}`",
                 e.span,
-                did_you_mean(e.field, params),
+                did_you_mean(e.field, params)
+                or (
+                    f"`{e.field}` is a part: read its parameters, `{e.field}.name`"
+                    if e.field in parts
+                    else None
+                ),
             )
             return ERR
         return declared_type(params[e.field].type) or ERR
+
+    def _nested_param(self, target: ast.Concept, a: ast.Arg) -> Type | None:
+        """The type of ``handle.length`` bound from a host: a parameter of a nested part that
+        the part in between leaves unbound (else it is not the host's to set)."""
+        assert a.name is not None
+        *path, name = a.name.split(".")
+        decl = target
+        for i, step in enumerate(path):
+            found = [m for m in flat_members(decl) if isinstance(m, ast.Part) and m.name == step]
+            entry = self.prog.concepts.get(found[0].concept) if found else None
+            if entry is None:
+                self.err(
+                    "E116",
+                    f"`{decl.name}` has no part `{step}`",
+                    a.span,
+                    did_you_mean(
+                        step, [m.name for m in flat_members(decl) if isinstance(m, ast.Part)]
+                    ),
+                )
+                return None
+            rest = ".".join([*path[i + 1 :], name])
+            if any(x.name == rest for x in found[0].args):
+                self.err(
+                    "E116",
+                    f"`{a.name}` is already given by {decl.name}",
+                    a.span,
+                    f"{decl.name} binds it in `part {step} = {found[0].concept}(...)`",
+                )
+                return None
+            decl = entry.decl
+        params = {m.name: m for m in decl.members if isinstance(m, ast.Param)}
+        if name not in params:
+            self.err(
+                "E116",
+                f"`{decl.name}` has no parameter `{name}`",
+                a.span,
+                did_you_mean(name, params),
+            )
+            return None
+        return declared_type(params[name].type)
+
+    def _part_path(self, e: ast.Expr) -> str | None:
+        """The concept of the part that ``left`` or ``left.handle`` (nested parts) denotes."""
+        if isinstance(e, ast.Name):
+            m = self.members.get(e.id)
+            return m.concept if isinstance(m, ast.Part) else None
+        if not isinstance(e, ast.Member):
+            return None
+        outer = self._part_path(e.obj)
+        entry = self.prog.concepts.get(outer) if outer is not None else None
+        if entry is None:
+            return None
+        found = [
+            m for m in flat_members(entry.decl) if isinstance(m, ast.Part) and m.name == e.field
+        ]
+        return found[0].concept if found else None
 
     def _unary(self, e: ast.Unary) -> TE:
         te = self.expr(e.operand)

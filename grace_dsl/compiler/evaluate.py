@@ -12,7 +12,7 @@ from typing import Any
 
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
-from grace_dsl.compiler.types import Type
+from grace_dsl.compiler.types import PART, Type
 from grace_dsl.lang import ast
 
 TypeTable = Mapping[int, Type]
@@ -119,6 +119,8 @@ class Evaluator:
     def _member(self, e: ast.Member) -> Any:
         if isinstance(e.obj, ast.Name) and e.obj.id in self.parts:
             return self.lookup(f"{e.obj.id}.{e.field}")  # a part's parameter
+        if self.types.get(id(e.obj)) == PART:  # a nested part's parameter: left.handle.length
+            return self.lookup(f"{dotted(e.obj)}.{e.field}")
         return self(e.obj)["xyz".index(e.field)]
 
     def _ifexpr(self, e: ast.IfExpr) -> Any:
@@ -179,6 +181,16 @@ class Evaluator:
     def _call(self, e: ast.Call) -> Any:
         args = [self(a.value) for a in e.args]
         return BUILTINS[e.func](self.b, [self.type_of(a.value) for a in e.args], *args)
+
+
+def dotted(e: ast.Expr) -> str:
+    """``left.handle`` for a chain of member accesses on a name."""
+    fields: list[str] = []
+    while isinstance(e, ast.Member):
+        fields.append(e.field)
+        e = e.obj
+    assert isinstance(e, ast.Name)
+    return ".".join([e.id, *reversed(fields)])
 
 
 def _map(f: Callable[[Any], Any], v: Any) -> Any:

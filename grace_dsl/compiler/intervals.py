@@ -357,8 +357,10 @@ def _sample_env(
         if t.kind in ("bool", "choice") or t.integer:
             col = np.round(col)
         columns.setdefault(key, {})[comp] = col
-    env: dict[str, Any] = {k: _array(v, n) if not isinstance(v, tuple) else tuple(
-        _array(x, n) for x in v) for k, v in fixed.items()}
+    env: dict[str, Any] = {
+        k: _array(v, n) if not isinstance(v, tuple) else tuple(_array(x, n) for x in v)
+        for k, v in fixed.items()
+    }
     for key, comps in columns.items():
         env[key] = comps[-1] if -1 in comps else tuple(comps[i] for i in sorted(comps))
     return env, n

@@ -134,6 +134,16 @@ class Lowered:
     parts: dict[str, str] = field(default_factory=dict)  # qualified part -> concept
 
 
+@dataclass(frozen=True)
+class _Scope:
+    """One concept or part being flattened: its evaluator and its parts' scopes."""
+
+    cc: CheckedConcept
+    prefix: str
+    ev: Evaluator
+    parts: dict[str, _Scope]
+
+
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
     """Flatten concept ``name`` into a ``Lowered`` model whose inputs are fresh symbols."""
     cc = checked.concepts[name]
@@ -161,6 +171,14 @@ class _Instance:
         host_pose: Any,
         host_link: str,
     ) -> None:
+        self._emit(self._scope(cc, prefix, bindings), host_pose, host_link)
+
+    def _scope(self, cc: CheckedConcept, prefix: str, bindings: dict[str, Any]) -> _Scope:
+        """The evaluator of a concept (or part) and, recursively, of its parts.
+
+        ``bindings`` gives the concept's parameters that its host binds, and with dotted keys
+        (``handle.length``) parameters of its nested parts; the others are lifted.  Parts'
+        scopes are made here, depth first, so a host can read ``left.handle.length``."""
         decl = cc.decl
         env: dict[str, Any] = {}
         for p in (m for m in decl.members if isinstance(m, ast.Param)):
@@ -169,17 +187,29 @@ class _Instance:
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
         args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
         shapes = {m.name: m for m in _all(decl) if isinstance(m, ast.Shape)}
+        scopes: dict[str, _Scope] = {}
 
         def on_demand(name: str) -> Any:  # lets, part arguments, shape cues; no cycles (checker)
             head, _, field = name.partition(".")
             if head in shapes:
                 return self._cue(shapes[head], field, ev)
-            return ev(lets[name].value if name in lets else args[name])
+            if name in lets or name in args:
+                return ev(lets[name].value if name in lets else args[name])
+            return scopes[head].ev.lookup(field)  # a nested part's parameter: left.handle.length
 
         qualified = frozenset([*(m.name for m in parts), *shapes])
         needs = definition_needs(lets, args, shapes)
         ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified, needs)
-        part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
+        bound = {m.name: self._part_bindings(m, prefix, ev, bindings) for m in parts}
+        for m in parts:
+            sub = self.checked.concepts[m.concept]
+            scopes[m.name] = self._scope(sub, f"{prefix}{m.name}.", bound[m.name])
+        return _Scope(cc, prefix, ev, scopes)
+
+    def _emit(self, scope: _Scope, host_pose: Any, host_link: str) -> None:
+        """Links, joints, shapes, grasps, parts, actions and requirements of a scope."""
+        cc, prefix, ev = scope.cc, scope.prefix, scope.ev
+        decl = cc.decl
         # links and joints
         link_of = {BASE_LINK: host_link}
         for link in (m for m in decl.members if isinstance(m, ast.Link)):
@@ -198,7 +228,7 @@ class _Instance:
             elif isinstance(m, ast.Grasp):
                 self._grasp(cc, m, prefix, link_of[lname], pose, ev)
             elif isinstance(m, ast.Part):
-                self._part(m, prefix, link_of[lname], pose, ev, part_bindings[m.name])
+                self._part(m, prefix, link_of[lname], pose, ev, scope.parts[m.name])
         for m in decl.members:
             if isinstance(m, ast.Action):
                 self._action(m, prefix, ev, host_pose)
@@ -224,21 +254,34 @@ class _Instance:
         self.out.p += symbols
         return tuple(symbols) if t.kind == "vec" else symbols[0]
 
-    def _part_bindings(self, part: ast.Part, prefix: str, ev: Evaluator) -> dict[str, Any]:
-        """Every parameter of a part: its argument's value, or a lifted parameter of the host.
+    def _part_bindings(
+        self, part: ast.Part, prefix: str, ev: Evaluator, bindings: dict[str, Any]
+    ) -> dict[str, Any]:
+        """Every parameter of a part: its argument's value, a value the host's host binds
+        (``bindings["handle.length"]``), or a lifted parameter of the host; and the values
+        bound for the part's own nested parts (``grip.size``).
 
         Lifting comes first, in declaration order, so the parameter vector's layout does not
         depend on which arguments read which part parameters."""
         sub = self.checked.concepts[part.concept]
         given = {a.name for a in part.args if a.name is not None}
+        own = f"{part.name}."
         for p in (m for m in sub.decl.members if isinstance(m, ast.Param)):
-            if p.name not in given:
-                ev.env[f"{part.name}.{p.name}"] = self._lift(sub, p, f"{prefix}{part.name}.")
-        return {
-            p.name: ev.lookup(f"{part.name}.{p.name}")
-            for p in sub.decl.members
-            if isinstance(p, ast.Param)
+            key = own + p.name
+            if key in bindings:
+                ev.env[key] = bindings[key]
+            elif p.name not in given:
+                ev.env[key] = self._lift(sub, p, prefix + own)
+        out = {
+            p.name: ev.lookup(own + p.name) for p in sub.decl.members if isinstance(p, ast.Param)
         }
+        for name in given:
+            if "." in name:
+                out[name] = ev.lookup(own + name)
+        for key, value in bindings.items():
+            if key.startswith(own) and "." in key[len(own) :]:
+                out[key[len(own) :]] = value
+        return out
 
     # -- kinematics
     def _joints(
@@ -377,11 +420,11 @@ class _Instance:
         link: str,
         link_pose: Any,
         ev: Evaluator,
-        bound: dict[str, Any],
+        scope: _Scope,
     ) -> None:
         host = link_pose if m.at is None else se3.matmul(link_pose, _as_pose(ev(m.at)))
         self.out.parts[prefix + m.name] = m.concept
-        self.build(self.checked.concepts[m.concept], f"{prefix}{m.name}.", bound, host, link)
+        self._emit(scope, host, link)
 
     def _action(self, a: ast.Action, prefix: str, ev: Evaluator, frame: Any) -> None:
         sense = a.sense or VERBS[a.verb]

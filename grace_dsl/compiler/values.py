@@ -332,9 +332,36 @@ def evaluator_at(
             head, _, field = name.partition(".")
             if head in shapes:
                 return _shape_cue(shapes[head], field)
-            return ev(lets[name].value if name in lets else args[name].value)
+            if name in lets or name in args:
+                return ev(lets[name].value if name in lets else args[name].value)
+            return _inside(head).lookup(field)  # a nested part's parameter: left.handle.length
         finally:
             visiting.pop()
+
+    inner: dict[str, Evaluator | None] = {}
+
+    def _inside(part_name: str) -> Evaluator:
+        """The evaluator of a part's concept with the values this concept gives it."""
+        if part_name not in inner:
+            part = next(p for p in parts if p.name == part_name)
+            sub = done[part.concept]
+            own = part_name + "."
+            given = {k: ev.lookup(own + k) for k in sub.param_types}
+            given.update(
+                {a.name: ev.lookup(own + a.name) for a in part.args if a.name and "." in a.name}
+            )
+            given.update(
+                {
+                    k[len(own) :]: v
+                    for k, v in values.items()
+                    if k.startswith(own) and "." in k[len(own) :]
+                }
+            )
+            inner[part_name] = evaluator_at(sub.decl, given, done, types, backend, observe)
+        found = inner[part_name]
+        if found is None:
+            raise KeyError(part_name)
+        return found
 
     def _shape_cue(shape: ast.Shape, field: str) -> Any:
         call = shape.value

@@ -615,8 +615,30 @@ class _Builder(Transformer):
         return ast.Arg(None, c[0], self._start(c[0]))
 
     def named_arg(self, c: list[Any]) -> ast.Arg:
-        name, value = c
-        return ast.Arg(name.value, value, self._span(name, value))
+        """``length: 120mm``, or ``handle.length: 120mm`` for a parameter of a nested part."""
+        target, value = c
+        name = _dotted(target)
+        if name is None:
+            raise _BadNumber(
+                error(
+                    "E002",
+                    "an argument's name must be a name, such as `length` or `handle.length`",
+                    target.span,
+                    "write `name: value`",
+                )
+            )
+        return ast.Arg(name, value, self._span(target, value))
+
+
+def _dotted(e: Any) -> str | None:
+    """``a.b.c`` for a name or a chain of member accesses on a name; None for anything else."""
+    fields: list[str] = []
+    while isinstance(e, ast.Member):
+        fields.append(e.field)
+        e = e.obj
+    if not isinstance(e, ast.Name):
+        return None
+    return ".".join([e.id, *reversed(fields)])
 
 
 # ---- syntax errors ------------------------------------------------------------------------------

@@ -47,15 +47,21 @@ def _combine(children: st.SearchStrategy[str]) -> st.SearchStrategy[str]:
 
 
 EXPRS = st.recursive(LEAVES, _combine, max_leaves=6)
-RANGES = st.tuples(
-    st.floats(-3, 3, allow_nan=False), st.floats(0, 4, allow_nan=False)
-).map(lambda t: (round(t[0], 3), round(t[0] + t[1], 3)))
+RANGES = st.tuples(st.floats(-3, 3, allow_nan=False), st.floats(0, 4, allow_nan=False)).map(
+    lambda t: (round(t[0], 3), round(t[0] + t[1], 3))
+)
 
 
 def _values(concept: Any, checked: Any, backend: Any, env: dict[str, Any]) -> dict[int, Any]:
     seen: dict[int, Any] = {}
-    ev = evaluator_at(concept.decl, env, checked.concepts, checked.types, backend,
-                      lambda e, v: seen.__setitem__(id(e), v))
+    ev = evaluator_at(
+        concept.decl,
+        env,
+        checked.concepts,
+        checked.types,
+        backend,
+        lambda e, v: seen.__setitem__(id(e), v),
+    )
     assert ev is not None
     ev.lookup("e")
     return seen
@@ -63,8 +69,9 @@ def _values(concept: Any, checked: Any, backend: Any, env: dict[str, Any]) -> di
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(expr=EXPRS, rx=RANGES, ry=RANGES)
-def test_intervals_hold_the_sampled_values(expr: str, rx: tuple[float, float],
-                                           ry: tuple[float, float]) -> None:
+def test_intervals_hold_the_sampled_values(
+    expr: str, rx: tuple[float, float], ry: tuple[float, float]
+) -> None:
     text = (
         f"concept P {{\n    param x : scalar in [{rx[0]}, {rx[1]}] = {rx[0]}\n"
         f"    param y : scalar in [{ry[0]}, {ry[1]}] = {ry[0]}\n    let e = {expr}\n}}\n"
@@ -72,8 +79,7 @@ def test_intervals_hold_the_sampled_values(expr: str, rx: tuple[float, float],
     with tempfile.TemporaryDirectory() as tmp:
         _, checked, _ = front_end([write(Path(tmp), "p.eac", text)])
     concept = checked.concepts["P"]
-    boxes = _values(concept, checked, INTERVALS,
-                    {"x": Interval(*rx), "y": Interval(*ry)})
+    boxes = _values(concept, checked, INTERVALS, {"x": Interval(*rx), "y": Interval(*ry)})
     rng = np.random.default_rng(0)
     xs = np.concatenate([[rx[0], rx[1]], rng.uniform(*rx, 64)])
     ys = np.concatenate([[ry[0], ry[1]], rng.uniform(*ry, 64)])
@@ -134,8 +140,7 @@ def test_the_issue_examples_warn_at_the_sub_expression(tmp_path: Path) -> None:
     "body",
     [
         # guarded by an `if` that excludes the zero
-        "param r : length in [0mm, 10mm] = 5mm\n"
-        "let a = if r > 0mm then 1mm * 1mm / r else 0mm",
+        "param r : length in [0mm, 10mm] = 5mm\nlet a = if r > 0mm then 1mm * 1mm / r else 0mm",
         # excluded by a requirement
         "param r : length in [0mm, 10mm] = 5mm  require r > 1mm\nlet a = 1mm * 1mm / r",
         # x - x is 0 but its interval is not: no witness, no warning
@@ -185,7 +190,9 @@ def test_a_non_finite_range_bound_or_default_is_an_error(tmp_path: Path) -> None
         "param d : scalar = 0 / 0",
     )
     assert [(d.code, d.severity, d.span.line) for d in found] == [
-        ("E225", "error", 3), ("E225", "error", 4), ("E225", "error", 5)
+        ("E225", "error", 3),
+        ("E225", "error", 4),
+        ("E225", "error", 5),
     ]
 
 

@@ -19,21 +19,22 @@ N = 1000
 
 def chain(n: int, backwards: bool, step: str = "l{p} + 1mm") -> str:
     """A concept whose grasp height is a chain of ``n`` lets, each reading the previous one."""
-    lets = ["    let l0 = a"] + [
-        f"    let l{i} = " + step.format(p=i - 1) for i in range(1, n)
-    ]
+    lets = ["    let l0 = a"] + [f"    let l{i} = " + step.format(p=i - 1) for i in range(1, n)]
     if backwards:
         lets.reverse()
-    return "\n".join(
-        [
-            "concept Chain {",
-            "    param a : length in [1mm, 10mm] = 5mm",
-            f"    require l{n - 1} > 0mm",
-            f"    grasp g = trans(0mm, 0mm, l{n - 1}) width 10mm",
-            *lets,
-            "}",
-        ]
-    ) + "\n"
+    return (
+        "\n".join(
+            [
+                "concept Chain {",
+                "    param a : length in [1mm, 10mm] = 5mm",
+                f"    require l{n - 1} > 0mm",
+                f"    grasp g = trans(0mm, 0mm, l{n - 1}) width 10mm",
+                *lets,
+                "}",
+            ]
+        )
+        + "\n"
+    )
 
 
 @pytest.mark.parametrize("backwards", [False, True])
