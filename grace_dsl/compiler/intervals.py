@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.backends import NUMPY
+from grace_dsl.compiler.evaluate import dotted
 from grace_dsl.compiler.interval_backend import EITHER, INTERVALS, Interval, hull, iv
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import Dim, Type, format_si
@@ -78,32 +79,40 @@ def check_intervals(
         return _confirm(concept, done, types, found)
 
 
+def _unbound_params(
+    concept: CheckedConcept, done: dict[str, CheckedConcept]
+) -> Iterator[tuple[str, CheckedConcept, str]]:
+    """(key, owner, name) of every parameter the concept leaves free: its own, and those of its
+    parts at any depth that no argument binds (``handle.r_in``, ``left.handle.length``)."""
+    stack: list[tuple[str, CheckedConcept, set[str]]] = [("", concept, set())]
+    while stack:
+        prefix, cc, bound = stack.pop(0)
+        for name in cc.param_types:
+            if name not in bound:
+                yield prefix + name, cc, name
+        for part in (m for m in flat_members(cc.decl) if isinstance(m, ast.Part)):
+            sub = done.get(part.concept)
+            if sub is None:
+                continue
+            own = part.name + "."
+            inner = {a.name for a in part.args if a.name}
+            inner |= {b[len(own) :] for b in bound if b.startswith(own)}
+            stack.append((prefix + own, sub, inner))
+
+
 def _interval_env(concept: CheckedConcept, done: dict[str, CheckedConcept]) -> dict[str, Any]:
-    """Each parameter as the interval of its range (a point without one), the concept's own
-    and its parts' unbound ones (``handle.r_in``)."""
+    """Each free parameter as the interval of its range (a point without one)."""
     env: dict[str, Any] = {}
-
-    def add(prefix: str, cc: CheckedConcept) -> None:
-        for name, t in cc.param_types.items():
-            if t.kind == "bool":
-                env[prefix + name] = EITHER
-            elif t.kind == "choice":
-                env[prefix + name] = Interval(0.0, float(len(t.choices) - 1))
-            elif name in cc.bounds:
-                env[prefix + name] = hull(*_intervals(cc.bounds[name]))
-            elif name in cc.defaults:
-                env[prefix + name] = _as_intervals(cc.defaults[name])
-
-    add("", concept)
-    for part in (m for m in flat_members(concept.decl) if isinstance(m, ast.Part)):
-        sub = done.get(part.concept)
-        if sub is not None:
-            bound = {a.name for a in part.args}
-            before = set(env)
-            add(part.name + ".", sub)
-            for key in set(env) - before:
-                if key.split(".", 1)[1] in bound:
-                    del env[key]
+    for key, cc, name in _unbound_params(concept, done):
+        t = cc.param_types[name]
+        if t.kind == "bool":
+            env[key] = EITHER
+        elif t.kind == "choice":
+            env[key] = Interval(0.0, float(len(t.choices) - 1))
+        elif name in cc.bounds:
+            env[key] = hull(*_intervals(cc.bounds[name]))
+        elif name in cc.defaults:
+            env[key] = _as_intervals(cc.defaults[name])
     return env
 
 
@@ -314,45 +323,40 @@ def _confirm(
     return out
 
 
+# (key, component or -1, lo, hi, type, owning concept, parameter name): one axis of the box
+_Dim = tuple[str, int, float, float, Type, "CheckedConcept", str]
+
+
 def _sample_env(
     concept: CheckedConcept, done: dict[str, CheckedConcept]
 ) -> tuple[dict[str, Any], int]:
     """Parameter values as arrays: the defaults, corners of the box and seeded random points."""
-    dims: list[tuple[str, int, float, float, Type]] = []  # (name, component, lo, hi, type)
+    dims: list[_Dim] = []
     fixed: dict[str, Any] = {}
 
-    def add(prefix: str, cc: CheckedConcept, bound: set[str]) -> None:
-        for name, t in cc.param_types.items():
-            if name in bound:
-                continue
-            key = prefix + name
-            if t.kind == "bool":
-                dims.append((key, -1, 0.0, 1.0, t))
-            elif t.kind == "choice":
-                dims.append((key, -1, 0.0, float(len(t.choices) - 1), t))
-            elif name in cc.bounds:
-                los, his = (np.atleast_1d(np.asarray(x, dtype=float)) for x in cc.bounds[name])
-                vector = t.kind == "vec"
-                for i, (lo, hi) in enumerate(zip(los, his)):
-                    dims.append((key, i if vector else -1, float(lo), float(hi), t))
-            elif name in cc.defaults:
-                fixed[key] = cc.defaults[name]
-
-    add("", concept, set())
-    for part in (m for m in flat_members(concept.decl) if isinstance(m, ast.Part)):
-        sub = done.get(part.concept)
-        if sub is not None:
-            add(part.name + ".", sub, {a.name for a in part.args if a.name})
+    for key, cc, name in _unbound_params(concept, done):
+        t = cc.param_types[name]
+        if t.kind == "bool":
+            dims.append((key, -1, 0.0, 1.0, t, cc, name))
+        elif t.kind == "choice":
+            dims.append((key, -1, 0.0, float(len(t.choices) - 1), t, cc, name))
+        elif name in cc.bounds:
+            los, his = (np.atleast_1d(np.asarray(x, dtype=float)) for x in cc.bounds[name])
+            vector = t.kind == "vec"
+            for i, (lo, hi) in enumerate(zip(los, his)):
+                dims.append((key, i if vector else -1, float(lo), float(hi), t, cc, name))
+        elif name in cc.defaults:
+            fixed[key] = cc.defaults[name]
     rng = np.random.default_rng(0)
     d = len(dims)
     if d <= MAX_CORNER_DIMS:
         corners = ((np.arange(2**d)[:, None] >> np.arange(d)) & 1).astype(float)
     else:
         corners = rng.integers(0, 2, size=(2**MAX_CORNER_DIMS, d)).astype(float)
-    unit = np.vstack([_defaults_row(dims, concept, done), corners, rng.uniform(size=(SAMPLES, d))])
+    unit = np.vstack([_defaults_row(dims), corners, rng.uniform(size=(SAMPLES, d))])
     n = len(unit)
     columns: dict[str, dict[int, np.ndarray]] = {}
-    for j, (key, comp, lo, hi, t) in enumerate(dims):
+    for j, (key, comp, lo, hi, t, _, _) in enumerate(dims):
         col = lo + unit[:, j] * (hi - lo)
         if t.kind in ("bool", "choice") or t.integer:
             col = np.round(col)
@@ -366,18 +370,11 @@ def _sample_env(
     return env, n
 
 
-def _defaults_row(
-    dims: list[tuple[str, int, float, float, Type]],
-    concept: CheckedConcept,
-    done: dict[str, CheckedConcept],
-) -> np.ndarray:
+def _defaults_row(dims: list[_Dim]) -> np.ndarray:
     """The defaults as a point of the unit box (they satisfy the requirements)."""
-    parts = {m.name: m.concept for m in flat_members(concept.decl) if isinstance(m, ast.Part)}
     row = []
-    for key, comp, lo, hi, _ in dims:
-        head, _, rest = key.partition(".")
-        owner, name = (done.get(parts[head]), rest) if rest else (concept, key)
-        default = owner.defaults.get(name) if owner is not None else None
+    for _, comp, lo, hi, _, owner, name in dims:
+        default = owner.defaults.get(name)
         if default is None:
             row.append(0.5)
             continue
@@ -421,7 +418,7 @@ def _witness(
             return None
         neg, pos = mask & (den < 0), mask & (den > 0)
         if neg.any() and pos.any():
-            return f"the divisor changes sign here@{int(np.argmax(neg))}"
+            return f"the divisor crosses 0: it is negative@{int(np.argmax(neg))}"
         return None
     if c.check == "sqrt":
         assert isinstance(node, ast.Call)
@@ -481,8 +478,8 @@ def _warning(
 
 def _where(node: ast.Expr, concept: CheckedConcept, env: dict[str, Any], i: int) -> str:
     """``at r = 0mm, h = 5mm``: the parameters the expression reads (else all), at point i."""
-    read = [n for n in dict.fromkeys(ast.dotted_names_in(node)) if n in env]
-    names = read or [n for n in env if "." not in n][:4]
+    read = [n for n in dict.fromkeys(_reads(node)) if n in env]
+    names = read or [n for n in env if "." not in n][:4] or list(env)[:4]
     shown = []
     for name in names:
         value = env[name]
@@ -503,6 +500,19 @@ def _shown(value: float, t: Type | None) -> str:
     if k in (0, 1) or t is None:
         return format_si(value, t.dim if t is not None else "")
     return f"{value * 1000.0**k:g}mm^{k}"
+
+
+def _reads(e: ast.Expr) -> Iterator[str]:
+    """Names an expression reads, member chains whole (``left.handle.length``)."""
+    for node in _nodes([e]):
+        if isinstance(node, ast.Name):
+            yield node.id
+        elif isinstance(node, ast.Member):
+            chain: ast.Expr = node
+            while isinstance(chain, ast.Member):
+                chain = chain.obj
+            if isinstance(chain, ast.Name):
+                yield dotted(node)
 
 
 def _has_branch(e: ast.Expr) -> bool:

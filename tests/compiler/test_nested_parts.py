@@ -82,3 +82,15 @@ def test_nested_parameter_errors(tmp_path: Path, body: str, code: str, words: st
     diags = front_end([path])[2]
     assert [d.code for d in diags] == [code]
     assert words in diags[0].message + (diags[0].hint or "")
+
+
+def test_the_interval_pass_ranges_over_nested_parameters(tmp_path: Path) -> None:
+    path = write(
+        tmp_path,
+        "c.eac",
+        PARTS + "concept T {\n    part left = Door()\n"
+        "    let k = 1mm * 1mm / (left.handle.length - 120mm)\n}\n",
+    )
+    diags = front_end([path])[2]
+    assert [(d.code, d.severity) for d in diags] == [("E233", "warning")]
+    assert "crosses 0" in (diags[0].hint or "") and "left.handle.length = " in (diags[0].hint or "")
