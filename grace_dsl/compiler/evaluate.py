@@ -193,6 +193,23 @@ def dotted(e: ast.Expr) -> str:
     return ".".join([e.id, *reversed(fields)])
 
 
+def reads(e: ast.Expr) -> Iterator[str]:
+    """Every name an expression reads, and every member chain on a name whole (``handle.r_in``,
+    ``left.handle.length``, and also ``size.x``: callers filter by what they know)."""
+    stack: list[ast.Expr] = [e]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.Name):
+            yield node.id
+        elif isinstance(node, ast.Member):
+            root = node.obj
+            while isinstance(root, ast.Member):
+                root = root.obj
+            if isinstance(root, ast.Name):
+                yield dotted(node)
+        stack += ast._children(node)
+
+
 def _map(f: Callable[[Any], Any], v: Any) -> Any:
     if isinstance(v, tuple):
         return tuple(_map(f, x) for x in v)

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.backends import NUMPY
-from grace_dsl.compiler.evaluate import dotted
+from grace_dsl.compiler.evaluate import reads
 from grace_dsl.compiler.interval_backend import EITHER, INTERVALS, Interval, hull, iv
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import Dim, Type, format_si
@@ -478,7 +478,7 @@ def _warning(
 
 def _where(node: ast.Expr, concept: CheckedConcept, env: dict[str, Any], i: int) -> str:
     """``at r = 0mm, h = 5mm``: the parameters the expression reads (else all), at point i."""
-    read = [n for n in dict.fromkeys(_reads(node)) if n in env]
+    read = [n for n in dict.fromkeys(reads(node)) if n in env]
     names = read or [n for n in env if "." not in n][:4] or list(env)[:4]
     shown = []
     for name in names:
@@ -500,19 +500,6 @@ def _shown(value: float, t: Type | None) -> str:
     if k in (0, 1) or t is None:
         return format_si(value, t.dim if t is not None else "")
     return f"{value * 1000.0**k:g}mm^{k}"
-
-
-def _reads(e: ast.Expr) -> Iterator[str]:
-    """Names an expression reads, member chains whole (``left.handle.length``)."""
-    for node in _nodes([e]):
-        if isinstance(node, ast.Name):
-            yield node.id
-        elif isinstance(node, ast.Member):
-            chain: ast.Expr = node
-            while isinstance(chain, ast.Member):
-                chain = chain.obj
-            if isinstance(chain, ast.Name):
-                yield dotted(node)
 
 
 def _has_branch(e: ast.Expr) -> bool:

@@ -22,7 +22,7 @@ from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
 from grace_dsl.compiler.check import VERBS, Checked, CheckedConcept
 from grace_dsl.compiler.cues import shape_cue
-from grace_dsl.compiler.evaluate import Evaluator, definition_needs
+from grace_dsl.compiler.evaluate import Evaluator, definition_needs, reads
 from grace_dsl.compiler.resolve import BASE_LINK
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
@@ -452,7 +452,7 @@ class _Instance:
                 where + (r.message or ""),
                 _brief(r),
                 format_expr(r.cond),
-                tuple(dict.fromkeys(prefix + n for n in ast.dotted_names_in(r.cond))),
+                tuple(dict.fromkeys(prefix + n for n in reads(r.cond))),
             )
         )
 

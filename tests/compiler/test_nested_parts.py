@@ -53,6 +53,8 @@ concept Binds {
     lib = compile_paths([path])
     reads = lib["Reads"]
     assert [p["name"] for p in reads.entry["params"]] == ["left.width", "left.handle.length"]
+    require = next(r for r in reads.entry["requires"] if "fits" in r["message"])
+    assert set(require["params"]) == {"left.handle.length", "left.width"}
     inst = reads.instantiate(**{"left.handle.length": 0.2})
     assert np.isclose(inst.grasp("far")[1, 3], 0.21)
     assert np.isclose(inst.grasp("left.handle.g")[2, 3], 0.2)
