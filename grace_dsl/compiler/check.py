@@ -6,6 +6,7 @@ rules live in ``types.py``; a concept that type-checks is then evaluated at its 
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -16,12 +17,13 @@ import numpy as np
 
 from grace_dsl.compiler import types as T
 from grace_dsl.compiler.cues import CUE_TYPES, has_cue
-from grace_dsl.compiler.evaluate import BUILTINS
+from grace_dsl.compiler.evaluate import BUILTINS, dotted
+from grace_dsl.compiler.intervals import check_intervals
 from grace_dsl.compiler.resolve import Program, flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type
 from grace_dsl.compiler.values import SET_OPS, check_values
 from grace_dsl.lang import ast
-from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
+from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error, has_errors
 
 ERR = Type("error")
 JOINT_KINDS = ("revolute", "prismatic", "continuous", "fixed")
@@ -135,10 +137,12 @@ class _ConceptChecker:
         for m in self.decl.members:
             self._member(m)
         result = CheckedConcept(self.decl, self.file, self.param_types, self.free_types)
-        result.ok = not self.diags and not self.incomplete
+        result.ok = not has_errors(self.diags) and not self.incomplete
         if result.ok:
             self.diags += check_values(result, self.done, self.types)
-            result.ok = not self.diags
+            result.ok = not has_errors(self.diags)
+        if result.ok:
+            self.diags += check_intervals(result, self.done, self.types)
         return result
 
     def _member(self, m: ast.Member_) -> None:
@@ -220,6 +224,37 @@ class _ConceptChecker:
 
     # ---- declarations ---------------------------------------------------------------------------
     def _let_type(self, name: str) -> Type:
+        if name in self.let_types:
+            return self.let_types[name]
+        if not self.visiting:  # type what it reads first: no recursion along a chain of lets
+            for dep in self._lets_first(name)[:-1]:
+                self._type_let(dep)
+        return self._type_let(name)
+
+    def _lets_first(self, name: str) -> list[str]:
+        """``name`` and the untyped lets it reads, dependencies first (iterative).  On a cycle
+        just ``[name]``: ``_type_let`` then walks to it and reports it from ``name``."""
+        order: list[str] = []
+        seen, path = {name}, {name}
+        stack = [(name, iter(ast.names_in(self.lets[name].value)))]
+        while stack:
+            node, reads = stack[-1]
+            for n in reads:
+                dep = n.id
+                if dep in path:
+                    return [name]
+                if dep in self.lets and dep not in seen and dep not in self.let_types:
+                    seen.add(dep)
+                    path.add(dep)
+                    stack.append((dep, iter(ast.names_in(self.lets[dep].value))))
+                    break
+            else:
+                stack.pop()
+                path.discard(node)
+                order.append(node)
+        return order
+
+    def _type_let(self, name: str) -> Type:
         if name in self.let_types:
             return self.let_types[name]
         let = self.lets[name]
@@ -331,6 +366,11 @@ class _ConceptChecker:
             if a.name in seen:
                 self.err("E118", f"argument `{a.name}` is given twice", a.span, "keep one of them")
             seen.add(a.name)
+            if "." in a.name and what == "concept":
+                nested = self._nested_param(target, a)
+                if nested is not None:
+                    self.coerce(te, nested, a.value.span)
+                continue
             if a.name not in params:
                 self.err(
                     "E116",
@@ -648,6 +688,10 @@ class _ConceptChecker:
         part = self.members.get(e.obj.id) if isinstance(e.obj, ast.Name) else None
         if isinstance(part, ast.Part):
             return TE(self._part_param(part, e))
+        nested = self._part_path(e.obj) if isinstance(e.obj, ast.Member) else None
+        if nested is not None:
+            self.types[id(e.obj)] = T.PART
+            return TE(self._param_of(nested, e, f"`{dotted(e.obj)}`"))
         if isinstance(part, ast.Shape):
             return TE(self._shape_cue(part, e))
         te = self.expr(e.obj)
@@ -712,19 +756,85 @@ class _ConceptChecker:
     def _part_param(self, part: ast.Part, e: ast.Member) -> Type:
         """``handle.r_in``: a parameter of a part, as bound by its arguments or lifted."""
         self.types[id(e.obj)] = ERR
-        entry = self.prog.concepts.get(part.concept)
+        return self._param_of(part.concept, e, f"`{part.name}`")
+
+    def _param_of(self, concept: str, e: ast.Member, label: str) -> Type:
+        """Parameter ``e.field`` of the part ``label`` made with ``concept``."""
+        entry = self.prog.concepts.get(concept)
         if entry is None:
             return ERR
         params = {m.name: m for m in entry.decl.members if isinstance(m, ast.Param)}
         if e.field not in params:
+            parts = [m.name for m in flat_members(entry.decl) if isinstance(m, ast.Part)]
             self.err(
                 "E212",
-                f"part `{part.name}` ({part.concept}) has no parameter `{e.field}`",
+                f"part {label} ({concept}) has no parameter `{e.field}`",
                 e.span,
-                did_you_mean(e.field, params),
+                did_you_mean(e.field, params)
+                or (
+                    f"`{e.field}` is a part: read its parameters, `{e.field}.name`"
+                    if e.field in parts
+                    else None
+                ),
             )
             return ERR
         return declared_type(params[e.field].type) or ERR
+
+    def _nested_param(self, target: ast.Concept, a: ast.Arg) -> Type | None:
+        """The type of ``handle.length`` bound from a host: a parameter of a nested part that
+        the part in between leaves unbound (else it is not the host's to set)."""
+        assert a.name is not None
+        *path, name = a.name.split(".")
+        decl = target
+        for i, step in enumerate(path):
+            found = [m for m in flat_members(decl) if isinstance(m, ast.Part) and m.name == step]
+            entry = self.prog.concepts.get(found[0].concept) if found else None
+            if entry is None:
+                self.err(
+                    "E116",
+                    f"`{decl.name}` has no part `{step}`",
+                    a.span,
+                    did_you_mean(
+                        step, [m.name for m in flat_members(decl) if isinstance(m, ast.Part)]
+                    ),
+                )
+                return None
+            rest = ".".join([*path[i + 1 :], name])
+            if any(x.name == rest for x in found[0].args):
+                self.err(
+                    "E116",
+                    f"`{a.name}` is already given by {decl.name}",
+                    a.span,
+                    f"{decl.name} binds it in `part {step} = {found[0].concept}(...)`",
+                )
+                return None
+            decl = entry.decl
+        params = {m.name: m for m in decl.members if isinstance(m, ast.Param)}
+        if name not in params:
+            self.err(
+                "E116",
+                f"`{decl.name}` has no parameter `{name}`",
+                a.span,
+                did_you_mean(name, params),
+            )
+            return None
+        return declared_type(params[name].type)
+
+    def _part_path(self, e: ast.Expr) -> str | None:
+        """The concept of the part that ``left`` or ``left.handle`` (nested parts) denotes."""
+        if isinstance(e, ast.Name):
+            m = self.members.get(e.id)
+            return m.concept if isinstance(m, ast.Part) else None
+        if not isinstance(e, ast.Member):
+            return None
+        outer = self._part_path(e.obj)
+        entry = self.prog.concepts.get(outer) if outer is not None else None
+        if entry is None:
+            return None
+        found = [
+            m for m in flat_members(entry.decl) if isinstance(m, ast.Part) and m.name == e.field
+        ]
+        return found[0].concept if found else None
 
     def _unary(self, e: ast.Unary) -> TE:
         te = self.expr(e.operand)
@@ -893,6 +1003,8 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
         return ERR
 
     def angle_like(i: int) -> bool:
+        if kinds[i] == "num" and args[i].type.dim == SCALAR:
+            _bare_angle(c, e.args[i].value, args[i])
         return kinds[i] == "num" and args[i].type.dim in (ANGLE, SCALAR)
 
     if f in ("sin", "cos", "tan"):
@@ -968,6 +1080,23 @@ def _builtin_type(c: _ConceptChecker, e: ast.Call, args: list[TE]) -> Type:
     if f == "inv":
         return args[0].type if kinds[0] in ("rot", "pose") else bad(0, "a rotation or pose")
     raise AssertionError(f"builtin without a type rule: {f}")
+
+
+def _bare_angle(c: _ConceptChecker, arg: ast.Expr, te: TE) -> None:
+    """``rotx(90)``: a bare non-zero constant where an angle is expected is radians, which is
+    rarely what was meant; a warning, since radians are the SI unit."""
+    if isinstance(te.const, (int, float)) and te.const != 0:
+        value = float(te.const)
+        c.diags.append(
+            Diagnostic(
+                "E237",
+                f"the bare number {value:g} is taken as {value:g} radians "
+                f"({math.degrees(value):g} degrees)",
+                arg.span,
+                f"write the unit: `{value:g}deg`, or `{value:g}rad` if radians are meant",
+                "warning",
+            )
+        )
 
 
 def _choice_hint(text: str, choices: tuple[str, ...]) -> str:

@@ -7,19 +7,24 @@ combine them; the expression is never turned into text or evaluated as Python.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
 
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
-from grace_dsl.compiler.types import Type
+from grace_dsl.compiler.types import PART, Type
 from grace_dsl.lang import ast
 
 TypeTable = Mapping[int, Type]
+Needs = Callable[[str], Iterable[str]]  # an on-demand name -> the on-demand names it reads
 
 
 class Evaluator:
-    """Evaluates expressions under ``env`` (name -> value); ``lazy`` supplies values on demand."""
+    """Evaluates expressions under ``env`` (name -> value); ``lazy`` supplies values on demand.
+
+    ``needs`` tells which on-demand names a definition reads.  With it, a name's definitions are
+    computed dependencies first, each once, so a chain of a thousand ``let``s costs no Python
+    recursion beyond one expression's depth."""
 
     def __init__(
         self,
@@ -28,19 +33,32 @@ class Evaluator:
         env: Mapping[str, Any],
         lazy: Callable[[str], Any] | None = None,
         parts: frozenset[str] = frozenset(),
+        needs: Needs | None = None,
+        observe: Callable[[ast.Expr, Any], None] | None = None,
     ):
         self.b = backend
         self.types = types
         self.env = dict(env)
         self.lazy = lazy
         self.parts = parts  # names whose members are parameters of a part: ``handle.r_in``
+        self.needs = needs
+        self.observe = observe  # called with every expression node and its value
+        self._computing: set[str] = set()
+
+    def with_names(self, extra: Mapping[str, Any]) -> Evaluator:
+        """The same evaluator with more names bound (a grasp's free parameters)."""
+        env = {**self.env, **extra}
+        return Evaluator(self.b, self.types, env, self.lazy, self.parts, self.needs, self.observe)
 
     def type_of(self, e: ast.Expr) -> Type:
         return self.types[id(e)]
 
     def __call__(self, e: ast.Expr) -> Any:
         method: Callable[[Any], Any] = getattr(self, "_" + type(e).__name__.lower())
-        return method(e)
+        value = method(e)
+        if self.observe is not None:
+            self.observe(e, value)
+        return value
 
     # -- leaves
     def _number(self, e: ast.Number) -> Any:
@@ -63,9 +81,37 @@ class Evaluator:
             return self.env[name]
         if self.lazy is None:
             raise KeyError(name)
-        value = self.lazy(name)
-        self.env[name] = value
-        return value
+        for dep in self._unready(name):
+            if dep not in self.env:
+                self._computing.add(dep)
+                try:
+                    value = self.lazy(dep)
+                finally:
+                    self._computing.discard(dep)
+                self.env[dep] = value
+        return self.env[name]
+
+    def _unready(self, name: str) -> list[str]:
+        """``name`` and the not yet computed definitions it reads, dependencies first.
+
+        An iterative depth-first walk; a name met again while on the walk (a cycle) or being
+        computed is left out, so the on-demand function still meets, and reports, the cycle."""
+        if self.needs is None:
+            return [name]
+        order: list[str] = []
+        seen = {name}
+        stack: list[tuple[str, Iterator[str]]] = [(name, iter(self.needs(name)))]
+        while stack:
+            node, deps = stack[-1]
+            for dep in deps:
+                if dep not in seen and dep not in self.env and dep not in self._computing:
+                    seen.add(dep)
+                    stack.append((dep, iter(self.needs(dep))))
+                    break
+            else:
+                stack.pop()
+                order.append(node)
+        return order
 
     def _vector(self, e: ast.Vector) -> Any:
         return tuple(self(x) for x in e.items)
@@ -73,6 +119,8 @@ class Evaluator:
     def _member(self, e: ast.Member) -> Any:
         if isinstance(e.obj, ast.Name) and e.obj.id in self.parts:
             return self.lookup(f"{e.obj.id}.{e.field}")  # a part's parameter
+        if self.types.get(id(e.obj)) == PART:  # a nested part's parameter: left.handle.length
+            return self.lookup(f"{dotted(e.obj)}.{e.field}")
         return self(e.obj)["xyz".index(e.field)]
 
     def _ifexpr(self, e: ast.IfExpr) -> Any:
@@ -133,6 +181,33 @@ class Evaluator:
     def _call(self, e: ast.Call) -> Any:
         args = [self(a.value) for a in e.args]
         return BUILTINS[e.func](self.b, [self.type_of(a.value) for a in e.args], *args)
+
+
+def dotted(e: ast.Expr) -> str:
+    """``left.handle`` for a chain of member accesses on a name."""
+    fields: list[str] = []
+    while isinstance(e, ast.Member):
+        fields.append(e.field)
+        e = e.obj
+    assert isinstance(e, ast.Name)
+    return ".".join([e.id, *reversed(fields)])
+
+
+def reads(e: ast.Expr) -> Iterator[str]:
+    """Every name an expression reads, and every member chain on a name whole (``handle.r_in``,
+    ``left.handle.length``, and also ``size.x``: callers filter by what they know)."""
+    stack: list[ast.Expr] = [e]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.Name):
+            yield node.id
+        elif isinstance(node, ast.Member):
+            root = node.obj
+            while isinstance(root, ast.Member):
+                root = root.obj
+            if isinstance(root, ast.Name):
+                yield dotted(node)
+        stack += ast._children(node)
 
 
 def _map(f: Callable[[Any], Any], v: Any) -> Any:
@@ -215,3 +290,31 @@ BUILTINS: dict[str, Callable[..., Any]] = {
     "trans": _trans,
     "inv": _inv,
 }
+
+
+def definition_needs(
+    lets: Mapping[str, ast.Let],
+    args: Mapping[str, ast.Expr],
+    shapes: Mapping[str, ast.Shape],
+) -> Needs:
+    """``needs`` for a concept's on-demand names: lets, part arguments (``handle.length``) and
+    shape cues (``bar.center``, defined by the shape's arguments and placement)."""
+
+    def exprs_of(name: str) -> list[ast.Expr] | None:
+        if name in lets:
+            return [lets[name].value]
+        if name in args:
+            return [args[name]]
+        head, _, field = name.partition(".")
+        shape = shapes.get(head)
+        if shape is None or not field:
+            return None
+        return [shape.value, *([shape.at] if shape.at is not None else [])]
+
+    def needs(name: str) -> Iterator[str]:
+        for e in exprs_of(name) or ():
+            for n in ast.dotted_names_in(e):
+                if exprs_of(n) is not None:
+                    yield n
+
+    return needs

@@ -22,7 +22,7 @@ from grace_dsl.compiler import se3
 from grace_dsl.compiler.backends import Backend
 from grace_dsl.compiler.check import VERBS, Checked, CheckedConcept
 from grace_dsl.compiler.cues import shape_cue
-from grace_dsl.compiler.evaluate import Evaluator
+from grace_dsl.compiler.evaluate import Evaluator, definition_needs, reads
 from grace_dsl.compiler.resolve import BASE_LINK
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
@@ -54,6 +54,8 @@ class JointInfo:
     axis: Any  # unit axis in the concept frame at the current q of its parent (backend tuple)
     origin: Any  # a point on the axis, concept frame (backend tuple)
     doc: str
+    where: str = ""  # ``file.eac:line`` of the declaration
+    range_where: str = ""  # ``file.eac:line`` of its range
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class ActionInfo:
     direction: Any  # explicit direction, unit 3-tuple in the concept frame (or None)
     using: tuple[str, ...]
     doc: str
+    where: str = ""  # ``file.eac:line`` of the declaration (of its direction, if explicit)
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,7 @@ class ShapeInfo:
     operands: tuple[str, ...]  # for set operations: qualified shape names
     pose: Any  # 4x4 in the concept frame
     at: Any = None  # 4x4 placement in its declaring frame (what its `at` says; None: identity)
+    where: str = ""  # ``file.eac:line`` of the declaration
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,16 @@ class Lowered:
     parts: dict[str, str] = field(default_factory=dict)  # qualified part -> concept
 
 
+@dataclass(frozen=True)
+class _Scope:
+    """One concept or part being flattened: its evaluator and its parts' scopes."""
+
+    cc: CheckedConcept
+    prefix: str
+    ev: Evaluator
+    parts: dict[str, _Scope]
+
+
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
     """Flatten concept ``name`` into a ``Lowered`` model whose inputs are fresh symbols."""
     cc = checked.concepts[name]
@@ -157,6 +171,14 @@ class _Instance:
         host_pose: Any,
         host_link: str,
     ) -> None:
+        self._emit(self._scope(cc, prefix, bindings), host_pose, host_link)
+
+    def _scope(self, cc: CheckedConcept, prefix: str, bindings: dict[str, Any]) -> _Scope:
+        """The evaluator of a concept (or part) and, recursively, of its parts.
+
+        ``bindings`` gives the concept's parameters that its host binds, and with dotted keys
+        (``handle.length``) parameters of its nested parts; the others are lifted.  Parts'
+        scopes are made here, depth first, so a host can read ``left.handle.length``."""
         decl = cc.decl
         env: dict[str, Any] = {}
         for p in (m for m in decl.members if isinstance(m, ast.Param)):
@@ -164,18 +186,30 @@ class _Instance:
         lets = {m.name: m for m in _all(decl) if isinstance(m, ast.Let)}
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
         args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
-
         shapes = {m.name: m for m in _all(decl) if isinstance(m, ast.Shape)}
+        scopes: dict[str, _Scope] = {}
 
         def on_demand(name: str) -> Any:  # lets, part arguments, shape cues; no cycles (checker)
             head, _, field = name.partition(".")
             if head in shapes:
                 return self._cue(shapes[head], field, ev)
-            return ev(lets[name].value if name in lets else args[name])
+            if name in lets or name in args:
+                return ev(lets[name].value if name in lets else args[name])
+            return scopes[head].ev.lookup(field)  # a nested part's parameter: left.handle.length
 
         qualified = frozenset([*(m.name for m in parts), *shapes])
-        ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified)
-        part_bindings = {m.name: self._part_bindings(m, prefix, ev) for m in parts}
+        needs = definition_needs(lets, args, shapes)
+        ev = Evaluator(self.b, self.checked.types, env, on_demand, qualified, needs)
+        bound = {m.name: self._part_bindings(m, prefix, ev, bindings) for m in parts}
+        for m in parts:
+            sub = self.checked.concepts[m.concept]
+            scopes[m.name] = self._scope(sub, f"{prefix}{m.name}.", bound[m.name])
+        return _Scope(cc, prefix, ev, scopes)
+
+    def _emit(self, scope: _Scope, host_pose: Any, host_link: str) -> None:
+        """Links, joints, shapes, grasps, parts, actions and requirements of a scope."""
+        cc, prefix, ev = scope.cc, scope.prefix, scope.ev
+        decl = cc.decl
         # links and joints
         link_of = {BASE_LINK: host_link}
         for link in (m for m in decl.members if isinstance(m, ast.Link)):
@@ -194,7 +228,7 @@ class _Instance:
             elif isinstance(m, ast.Grasp):
                 self._grasp(cc, m, prefix, link_of[lname], pose, ev)
             elif isinstance(m, ast.Part):
-                self._part(m, prefix, link_of[lname], pose, ev, part_bindings[m.name])
+                self._part(m, prefix, link_of[lname], pose, ev, scope.parts[m.name])
         for m in decl.members:
             if isinstance(m, ast.Action):
                 self._action(m, prefix, ev, host_pose)
@@ -220,21 +254,34 @@ class _Instance:
         self.out.p += symbols
         return tuple(symbols) if t.kind == "vec" else symbols[0]
 
-    def _part_bindings(self, part: ast.Part, prefix: str, ev: Evaluator) -> dict[str, Any]:
-        """Every parameter of a part: its argument's value, or a lifted parameter of the host.
+    def _part_bindings(
+        self, part: ast.Part, prefix: str, ev: Evaluator, bindings: dict[str, Any]
+    ) -> dict[str, Any]:
+        """Every parameter of a part: its argument's value, a value the host's host binds
+        (``bindings["handle.length"]``), or a lifted parameter of the host; and the values
+        bound for the part's own nested parts (``grip.size``).
 
         Lifting comes first, in declaration order, so the parameter vector's layout does not
         depend on which arguments read which part parameters."""
         sub = self.checked.concepts[part.concept]
         given = {a.name for a in part.args if a.name is not None}
+        own = f"{part.name}."
         for p in (m for m in sub.decl.members if isinstance(m, ast.Param)):
-            if p.name not in given:
-                ev.env[f"{part.name}.{p.name}"] = self._lift(sub, p, f"{prefix}{part.name}.")
-        return {
-            p.name: ev.lookup(f"{part.name}.{p.name}")
-            for p in sub.decl.members
-            if isinstance(p, ast.Param)
+            key = own + p.name
+            if key in bindings:
+                ev.env[key] = bindings[key]
+            elif p.name not in given:
+                ev.env[key] = self._lift(sub, p, prefix + own)
+        out = {
+            p.name: ev.lookup(own + p.name) for p in sub.decl.members if isinstance(p, ast.Param)
         }
+        for name in given:
+            if "." in name:
+                out[name] = ev.lookup(own + name)
+        for key, value in bindings.items():
+            if key.startswith(own) and "." in key[len(own) :]:
+                out[key[len(own) :]] = value
+        return out
 
     # -- kinematics
     def _joints(
@@ -262,7 +309,16 @@ class _Instance:
         if j.kind == "fixed":
             self.out.joints.append(
                 JointInfo(
-                    name, j.kind, link_of[j.parent], link_of[j.child], None, None, None, None, j.doc
+                    name,
+                    j.kind,
+                    link_of[j.parent],
+                    link_of[j.child],
+                    None,
+                    None,
+                    None,
+                    None,
+                    j.doc,
+                    where(j.span),
                 )
             )
             return parent_pose
@@ -296,6 +352,8 @@ class _Instance:
                 world_axis,
                 world_origin,
                 j.doc,
+                where(j.span),
+                where(j.limits.span) if j.limits is not None else "",
             )
         )
         return se3.matmul(parent_pose, motion)
@@ -316,14 +374,16 @@ class _Instance:
         if v.func in ("union", "difference"):
             operands = tuple(prefix + a.value.id for a in v.args if isinstance(a.value, ast.Name))
             self.out.shapes.append(
-                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local)
+                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local, where(s.span))
             )
             return
         prim = self.checked.concepts[v.func]
         args = dict(prim.defaults)
         args.update({a.name: ev(a.value) for a in v.args if a.name is not None})
         args = {k: _as_backend(self.b, val) for k, val in args.items()}
-        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local))
+        self.out.shapes.append(
+            ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local, where(s.span))
+        )
 
     def _grasp(
         self,
@@ -343,7 +403,7 @@ class _Instance:
             free.append(FreeInfo(fp.name, cc.free_types[g.name][fp.name], lo, hi, default))
             symbols.append(sym)
         free_env = dict(zip((f.name for f in g.free), symbols))
-        sub = Evaluator(self.b, ev.types, {**ev.env, **free_env}, ev.lazy, ev.parts)
+        sub = ev.with_names(free_env)
         pose = se3.matmul(link_pose, _as_pose(sub(g.pose)))
         width = sub(g.width) if g.width is not None else None
         axis = None
@@ -360,11 +420,11 @@ class _Instance:
         link: str,
         link_pose: Any,
         ev: Evaluator,
-        bound: dict[str, Any],
+        scope: _Scope,
     ) -> None:
         host = link_pose if m.at is None else se3.matmul(link_pose, _as_pose(ev(m.at)))
         self.out.parts[prefix + m.name] = m.concept
-        self.build(self.checked.concepts[m.concept], f"{prefix}{m.name}.", bound, host, link)
+        self._emit(scope, host, link)
 
     def _action(self, a: ast.Action, prefix: str, ev: Evaluator, frame: Any) -> None:
         sense = a.sense or VERBS[a.verb]
@@ -380,6 +440,7 @@ class _Instance:
             direction,
             tuple(prefix + u for u in a.using),
             a.doc,
+            where(a.direction.span if a.direction is not None else a.span),
         )
 
     def _require(self, r: ast.Require, prefix: str, ev: Evaluator) -> None:
@@ -391,7 +452,7 @@ class _Instance:
                 where + (r.message or ""),
                 _brief(r),
                 format_expr(r.cond),
-                tuple(dict.fromkeys(prefix + n for n in ast.dotted_names_in(r.cond))),
+                tuple(dict.fromkeys(prefix + n for n in reads(r.cond))),
             )
         )
 
@@ -409,8 +470,13 @@ def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:
 
 
 def _brief(r: ast.Require) -> str:
-    s = r.cond.span
-    return f"{PurePath(s.file).name}:{s.line}" if s.line else ""
+    return where(r.cond.span)
+
+
+def where(span: ast.Span) -> str:
+    """``file.eac:line`` of a span (the file's name only), or "" without a position: what the
+    manifest records so that runtime errors can point at the source of a formula."""
+    return f"{PurePath(span.file).name}:{span.line}" if span.line else ""
 
 
 def _unit(b: Backend, v: tuple[Any, ...]) -> tuple[Any, ...]:

@@ -12,7 +12,7 @@ import sympy as sp
 
 from grace_dsl.compiler import se3
 from grace_dsl.compiler.functions import sympy_matrix
-from grace_dsl.compiler.lower import GraspInfo, Lowered, ParamInfo
+from grace_dsl.compiler.lower import GraspInfo, Lowered, ParamInfo, where
 from grace_dsl.compiler.types import Type
 from grace_dsl.lang import ast
 
@@ -176,6 +176,8 @@ def concept_entry(
                 "child": j.child,
                 "doc": j.doc,
                 "index": moving.index(j) if j in moving else None,
+                "where": j.where,
+                "range_where": j.range_where,
             }
             for j in low.joints
         ],
@@ -190,6 +192,8 @@ def concept_entry(
                 "symmetric": g.axis is not None,
                 "demands": grasp_demands(g),
                 "source": source_text(source, g.source.pose.span) if "." not in g.name else "",
+                "where": where(g.source.pose.span),
+                "width_where": where(g.source.width.span) if g.source.width is not None else "",
                 "formula": _formula(exact.grasps[g.name].pose),
             }
             for g in low.grasps.values()
@@ -203,6 +207,7 @@ def concept_entry(
                 "direction": a.direction is not None,
                 "using": list(a.using),
                 "doc": a.doc,
+                "where": a.where,
                 "formula": force_formula(exact, a.name),
             }
             for a in low.actions.values()
@@ -214,6 +219,7 @@ def concept_entry(
                 "primitive": s.primitive,
                 "operands": list(s.operands),
                 "operand_of": operand_of.get(s.name),  # consumed by a union/difference
+                "where": s.where,
                 "args": [
                     {"name": k, "size": len(v) if isinstance(v, tuple) else 1}
                     for k, v in s.args.items()

@@ -224,15 +224,14 @@ def _import_cycles(prog: Program) -> list[Diagnostic]:
         state[f] = 1
         for g in prog.imports.get(f, []):
             if state.get(g) == 1:
-                cycle = " -> ".join(Path(x).stem for x in [*stack[stack.index(g) :], f, g])
-                diags.append(
-                    error(
-                        "E102",
-                        f"import cycle: {cycle}",
-                        _use_span(prog, f, g),
-                        "move the shared concepts into a module both can import",
-                    )
+                path = [*stack, f]
+                cycle = " -> ".join(Path(x).stem for x in [*path[path.index(g) :], g])
+                hint = (
+                    "a file sees its own concepts without `use`; remove this line"
+                    if g == f
+                    else "move the shared concepts into a module both can import"
                 )
+                diags.append(error("E102", f"import cycle: {cycle}", _use_span(prog, f, g), hint))
             elif g not in state:
                 visit(g, [*stack, f])
         state[f] = 2

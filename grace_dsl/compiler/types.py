@@ -74,6 +74,7 @@ ROT = Type("rot")
 POSE = Type("pose")
 STRING = Type("string")
 SHAPE = Type("shape")
+PART = Type("part")  # ``left.handle`` in ``left.handle.length``: a path to a nested part
 INT = Type("num", SCALAR, 1, (), True)
 
 UNIT_DIMS = {"scalar": SCALAR, "length": LENGTH, "angle": ANGLE}

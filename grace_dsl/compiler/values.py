@@ -9,13 +9,14 @@ a host reads its parts' defaults from ``done``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.compiler.backends import NUMPY
+from grace_dsl.compiler.backends import NUMPY, Backend
 from grace_dsl.compiler.cues import shape_cue
-from grace_dsl.compiler.evaluate import Evaluator
+from grace_dsl.compiler.evaluate import Evaluator, definition_needs
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import ANGLE, LENGTH, SCALAR, Dim, Type, format_si
 from grace_dsl.lang import ast
@@ -129,6 +130,8 @@ class _ValueChecker:
             lo = hi = None
             if p.bounds is not None:
                 lo, hi = ev(p.bounds.lo), ev(p.bounds.hi)
+                if not self._finite_constant(name, "bound", (p.bounds.lo, lo), (p.bounds.hi, hi)):
+                    continue
                 if np.any(np.asarray(lo) > np.asarray(hi)):
                     self.err(
                         "E208",
@@ -140,6 +143,10 @@ class _ValueChecker:
                 out.bounds[name] = (lo, hi)
             if p.default is not None:
                 value = ev(p.default)
+                if t.kind in ("num", "vec") and not self._finite_constant(
+                    name, "default", (p.default, value)
+                ):
+                    continue
                 if t.kind == "choice":
                     value = float(t.choices.index(value))
                 elif t.kind == "bool":
@@ -170,6 +177,21 @@ class _ValueChecker:
                     f"the range is [{format_si(lo, t.dim)}, {format_si(hi, t.dim)}]",
                 )
             out.defaults[name] = value
+
+    def _finite_constant(self, name: str, what: str, *values: tuple[ast.Expr, Any]) -> bool:
+        """A parameter's bound or default must be a finite number: a NaN bound would switch
+        range checks off, an infinite one makes the range meaningless."""
+        for expr, value in values:
+            if not np.all(np.isfinite(np.asarray(value, dtype=float))):
+                self.err(
+                    "E225",
+                    f"the {what} of `{name}` is not a finite number",
+                    expr.span,
+                    "ranges and defaults are finite numbers; look for a division by zero, "
+                    "the square root of a negative number or an overflow",
+                )
+                return False
+        return True
 
     def _check_member_values(self, m: ast.Member_, ev: Evaluator) -> None:
         name = getattr(m, "name", None)
@@ -248,7 +270,7 @@ class _ValueChecker:
                     fp.default.span,
                     f"the range is [{format_si(float(lo), dim)}, {format_si(float(hi), dim)}]",
                 )
-        sub = Evaluator(NUMPY, self.types, {**ev.env, **free}, ev.lazy, ev.parts)
+        sub = ev.with_names(free)
         self._finite(sub(g.pose), g.pose.span, f"grasp `{g.name}`")
         if g.width is not None:
             self._finite(sub(g.width), g.width.span, f"the width of grasp `{g.name}`")
@@ -277,10 +299,13 @@ def evaluator_at(
     values: dict[str, Any],
     done: dict[str, CheckedConcept],
     types: dict[int, Type],
+    backend: Backend = NUMPY,
+    observe: Callable[[ast.Expr, Any], None] | None = None,
 ) -> Evaluator | None:
-    """A NumPy evaluator of ``decl`` with parameter ``values``: lets and part arguments are
+    """An evaluator of ``decl`` with parameter ``values``: lets and part arguments are
     computed on demand (raising ``_Cycle`` on a loop), a part's unbound parameters take their
-    concept's defaults.  None when a part's concept did not check."""
+    concept's defaults unless ``values`` gives them (``handle.r_in``).  None when a part's
+    concept did not check.  NumPy by default; the interval pass uses its own backend."""
     lets = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Let)}
     parts = [m for m in flat_members(decl) if isinstance(m, ast.Part)]
     args = {f"{p.name}.{a.name}": a for p in parts for a in p.args if a.name}
@@ -293,7 +318,7 @@ def evaluator_at(
             {
                 f"{part.name}.{k}": v
                 for k, v in sub.defaults.items()
-                if f"{part.name}.{k}" not in args
+                if f"{part.name}.{k}" not in args and f"{part.name}.{k}" not in values
             }
         )
     shapes = {m.name: m for m in flat_members(decl) if isinstance(m, ast.Shape)}
@@ -307,16 +332,45 @@ def evaluator_at(
             head, _, field = name.partition(".")
             if head in shapes:
                 return _shape_cue(shapes[head], field)
-            return ev(lets[name].value if name in lets else args[name].value)
+            if name in lets or name in args:
+                return ev(lets[name].value if name in lets else args[name].value)
+            return _inside(head).lookup(field)  # a nested part's parameter: left.handle.length
         finally:
             visiting.pop()
+
+    inner: dict[str, Evaluator | None] = {}
+
+    def _inside(part_name: str) -> Evaluator:
+        """The evaluator of a part's concept with the values this concept gives it."""
+        if part_name not in inner:
+            part = next(p for p in parts if p.name == part_name)
+            sub = done[part.concept]
+            own = part_name + "."
+            given = {k: ev.lookup(own + k) for k in sub.param_types}
+            given.update(
+                {a.name: ev.lookup(own + a.name) for a in part.args if a.name and "." in a.name}
+            )
+            given.update(
+                {
+                    k[len(own) :]: v
+                    for k, v in values.items()
+                    if k.startswith(own) and "." in k[len(own) :]
+                }
+            )
+            inner[part_name] = evaluator_at(sub.decl, given, done, types, backend, observe)
+        found = inner[part_name]
+        if found is None:
+            raise KeyError(part_name)
+        return found
 
     def _shape_cue(shape: ast.Shape, field: str) -> Any:
         call = shape.value
         prim = done.get(call.func) if isinstance(call, ast.Call) else None
-        return shape_cue(NUMPY, ev, shape, dict(prim.defaults) if prim else {}, field)
+        return shape_cue(backend, ev, shape, dict(prim.defaults) if prim else {}, field)
 
-    ev = Evaluator(NUMPY, types, env, value, frozenset([*(p.name for p in parts), *shapes]))
+    needs = definition_needs(lets, {k: a.value for k, a in args.items()}, shapes)
+    qualified = frozenset([*(p.name for p in parts), *shapes])
+    ev = Evaluator(backend, types, env, value, qualified, needs, observe)
     return ev
 
 

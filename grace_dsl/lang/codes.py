@@ -67,6 +67,11 @@ CODES: dict[str, str] = {
     "E230": "direction must be a 3-vector",
     "E231": "gripper width must be a length",
     "E232": "unknown grasp mode",
+    "E233": "division by an interval containing 0",
+    "E234": "square root of an interval reaching below 0",
+    "E235": "overflow or undefined value inside the ranges",
+    "E236": "argument leaves its range inside the declared ranges",
+    "E237": "bare number where an angle is expected",
     # build and I/O
     "E301": "cache or output directory not writable",
     "E302": "cache directory not private",

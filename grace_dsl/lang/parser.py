@@ -67,6 +67,11 @@ def parse(source: str, path: str = "<string>") -> ParseResult:
         try:
             module, notes = _parse_once(text, path)
         except UnexpectedInput as exc:
+            stray = _stray_doc(exc, text, path)
+            if stray is not None:  # report it once, at the comment, and parse on without it
+                diag, text = stray
+                diags.append(diag)
+                continue
             diags.append(_syntax_diagnostic(exc, text, path))
             blanked = _blank_declaration(text, exc)
             if blanked is None:
@@ -595,8 +600,30 @@ class _Builder(Transformer):
         return ast.Arg(None, c[0], self._start(c[0]))
 
     def named_arg(self, c: list[Any]) -> ast.Arg:
-        name, value = c
-        return ast.Arg(name.value, value, self._span(name, value))
+        """``length: 120mm``, or ``handle.length: 120mm`` for a parameter of a nested part."""
+        target, value = c
+        name = _dotted(target)
+        if name is None:
+            raise _BadNumber(
+                error(
+                    "E002",
+                    "an argument's name must be a name, such as `length` or `handle.length`",
+                    target.span,
+                    "write `name: value`",
+                )
+            )
+        return ast.Arg(name, value, self._span(target, value))
+
+
+def _dotted(e: Any) -> str | None:
+    """``a.b.c`` for a name or a chain of member accesses on a name; None for anything else."""
+    fields: list[str] = []
+    while isinstance(e, ast.Member):
+        fields.append(e.field)
+        e = e.obj
+    if not isinstance(e, ast.Name):
+        return None
+    return ".".join([e.id, *reversed(fields)])
 
 
 # ---- syntax errors ------------------------------------------------------------------------------
@@ -697,13 +724,6 @@ def _syntax_diagnostic(exc: UnexpectedInput, text: str, path: str) -> Diagnostic
         message = f"unexpected `{tok.value}` after the number `{before.value}`"
     if tok.type == "RBRACE" and not _open_braces(text, tok.start_pos or 0):
         return error("E002", "unexpected `}`: no block is open here", span, "one `}` too many?")
-    if tok.type == "RBRACE" and _doc_right_before(text, tok):
-        return error(
-            "E002",
-            "a `///` doc comment here documents nothing",
-            span,
-            "put it right before the declaration it describes, or use `//`",
-        )
     prev = _unfinished_before(exc, text)
     if prev is not None:
         span = ast.Span(path, prev[0], prev[1], prev[0], prev[1] + 1)
@@ -792,11 +812,35 @@ def _open_braces(text: str, upto: int) -> list[int]:
     return stack
 
 
-def _doc_right_before(text: str, tok: Token) -> bool:
-    """Whether the last non-blank line before ``tok`` is a ``///`` doc comment."""
-    lines = text.split("\n")[: (tok.line or 1) - 1]
-    code = [line.strip() for line in lines if line.strip()]
-    return bool(code) and code[-1].startswith("///")
+def _stray_doc(exc: UnexpectedInput, text: str, path: str) -> tuple[Diagnostic, str] | None:
+    """A ``///`` comment (or several) right before a ``}``: it documents nothing.  The
+    diagnostic at the first comment line, and the text with those comments blanked out."""
+    tok = getattr(exc, "token", None)
+    if not isinstance(exc, UnexpectedToken) or tok is None or tok.type != "RBRACE":
+        return None
+    lines = text.split("\n")
+    docs: list[int] = []
+    for index in range((tok.line or 1) - 2, -1, -1):
+        stripped = lines[index].strip()
+        if stripped.startswith("///"):
+            docs.append(index)
+        elif stripped:
+            break
+    if not docs:
+        return None
+    first = docs[-1]
+    col = lines[first].index("///") + 1
+    span = ast.Span(path, first + 1, col, first + 1, len(lines[first]) + 1)
+    for index in docs:
+        start = lines[index].index("///")
+        lines[index] = lines[index][:start] + " " * (len(lines[index]) - start)
+    diag = error(
+        "E002",
+        "a `///` doc comment here documents nothing",
+        span,
+        "put it right before the declaration it describes, or use `//`",
+    )
+    return diag, "\n".join(lines)
 
 
 def _unfinished_before(exc: UnexpectedInput, text: str) -> tuple[int, int] | None:

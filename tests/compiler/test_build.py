@@ -117,6 +117,7 @@ def test_artifact_round_trip(tmp_path: Path) -> None:
         "direction": False,
         "using": ["block.top"],
         "doc": "",
+        "where": "user.eac:8",
     }
     loaded = load_artifact(tmp_path / "out")
     fresh = Library(result.units)

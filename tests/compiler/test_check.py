@@ -24,7 +24,7 @@ def codes(tmp_path: Path, body: str, header: str = "use primitives.{Cuboid, Ring
         "param v : vec3 length = (1mm, 0, 0)  let n = norm(v)  let u = normalize(v)  "
         "let d = dot(v, v)  let c = cross(v, v)",
         "let p = rotz(30deg) * trans(0, 1mm, 0) * rpy(0, 0, pi / 2)  let q = inv(p) * p",
-        "param a : angle = 10deg  let s = sin(a) + cos(0.5) + tan(a)  let b = atan2(1mm, 2mm)",
+        "param a : angle = 10deg  let s = sin(a) + cos(0.5rad) + tan(a)  let b = atan2(1mm, 2mm)",
         'param side : choice{"l", "r"} = "r"  let k = if side == "l" then 1mm else 0',
         "param n : int in [1, 5] = 3  param f : bool = true  let m = if f and n > 2 then n else 0",
         "let x = (0, 0, 0)  let y = trans(x * 1mm)",
@@ -145,3 +145,20 @@ def test_part_choices_bound_to_options(tmp_path: Path) -> None:
         'then "left" else "right")'
     )
     assert codes(tmp_path, computed, header) == ["E227"]
+
+
+def test_a_bare_number_as_an_angle_warns(tmp_path: Path) -> None:
+    """Regression: `rotx(90)` was silently 90 radians."""
+    path = write(
+        tmp_path,
+        "t.eac",
+        "concept T {\n    param k : scalar in [0, 1] = 0.5\n"
+        "    let a = rotx(90)\n    let b = rpy(0, 0, 1.5)\n    let c = sin(2)\n"
+        "    let fine = rotx(90deg) * roty(0) * rotz(k) * rotx(pi / 2)\n}\n",
+    )
+    _, checked, diags = front_end([path])
+    assert [(d.code, d.severity, d.span.line) for d in diags] == [
+        ("E237", "warning", 3), ("E237", "warning", 4), ("E237", "warning", 5)
+    ]
+    assert "5156.62 degrees" in diags[0].message and "`90deg`" in (diags[0].hint or "")
+    assert checked.concepts["T"].ok  # a warning does not fail the concept

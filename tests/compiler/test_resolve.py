@@ -56,6 +56,14 @@ def test_import_cycle(tmp_path: Path) -> None:
     )
 
 
+def test_a_file_that_uses_itself_is_a_cycle(tmp_path: Path) -> None:
+    """Regression: ``use`` of the file itself raised ValueError in resolve instead of E102."""
+    me = write(tmp_path, "me.eac", "use me.{A}\nconcept A { param x : length = 1mm }\n")
+    _, diags = resolve([me])
+    assert codes(diags) == ["E102"]
+    assert "me -> me" in diags[0].message and diags[0].span.line == 1
+
+
 def test_duplicate_concepts_and_members(tmp_path: Path) -> None:
     write(tmp_path, "a.eac", "concept A { param x : scalar = 1  let x = 2 }\n")
     write(tmp_path, "b.eac", "concept A { param y : scalar = 1 }\n")

@@ -191,6 +191,21 @@ def test_a_doc_comment_that_documents_nothing() -> None:
     assert d.code == "E002" and "documents nothing" in d.message
 
 
+def test_a_stray_doc_comment_is_reported_once_at_the_comment() -> None:
+    """Regression: a `///` before `}` was reported N+1 times (N members), at the brace."""
+    src = (
+        "concept A {\n    param x : length = 1mm\n    let y = x\n    let z = y\n"
+        "    link l {\n        /// first\n        /// second\n    }\n"
+        "    /// orphan\n}\n"
+    )
+    r = parse(src, "t.eac")
+    assert [(d.code, d.span.line, d.span.col) for d in r.diagnostics] == [
+        ("E002", 6, 9),
+        ("E002", 9, 5),
+    ]
+    assert r.module is not None and len(r.module.concepts[0].members) == 4  # nothing dropped
+
+
 def test_an_unclosed_brace_names_its_line() -> None:
     (d,) = parse("concept A {\n    let x = 1\n", "t.eac").diagnostics
     assert d.code == "E003" and "line 1 is never closed" in d.message
