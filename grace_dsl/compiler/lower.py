@@ -99,6 +99,7 @@ class ShapeInfo:
     operands: tuple[str, ...]  # for set operations: qualified shape names
     pose: Any  # 4x4 in the concept frame
     at: Any = None  # 4x4 placement in its declaring frame (what its `at` says; None: identity)
+    where: str = ""  # file:line of the declaration (runtime errors about its arguments)
 
 
 @dataclass(frozen=True)
@@ -316,14 +317,15 @@ class _Instance:
         if v.func in ("union", "difference"):
             operands = tuple(prefix + a.value.id for a in v.args if isinstance(a.value, ast.Name))
             self.out.shapes.append(
-                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local)
+                ShapeInfo(prefix + s.name, link, v.func, {}, operands, pose, local, _line(s.span))
             )
             return
         prim = self.checked.concepts[v.func]
         args = dict(prim.defaults)
         args.update({a.name: ev(a.value) for a in v.args if a.name is not None})
         args = {k: _as_backend(self.b, val) for k, val in args.items()}
-        self.out.shapes.append(ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local))
+        shape = ShapeInfo(prefix + s.name, link, v.func, args, (), pose, local, _line(s.span))
+        self.out.shapes.append(shape)
 
     def _grasp(
         self,
@@ -409,7 +411,10 @@ def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:
 
 
 def _brief(r: ast.Require) -> str:
-    s = r.cond.span
+    return _line(r.cond.span)
+
+
+def _line(s: ast.Span) -> str:
     return f"{PurePath(s.file).name}:{s.line}" if s.line else ""
 
 

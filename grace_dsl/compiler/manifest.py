@@ -4,6 +4,7 @@ synopses and formulas)."""
 
 from __future__ import annotations
 
+from pathlib import PurePath
 from typing import Any
 
 import casadi as ca
@@ -190,6 +191,7 @@ def concept_entry(
                 "symmetric": g.axis is not None,
                 "demands": grasp_demands(g),
                 "source": source_text(source, g.source.pose.span) if "." not in g.name else "",
+                "where": f"{PurePath(g.source.span.file).name}:{g.source.span.line}",
                 "formula": _formula(exact.grasps[g.name].pose),
             }
             for g in low.grasps.values()
@@ -214,6 +216,7 @@ def concept_entry(
                 "primitive": s.primitive,
                 "operands": list(s.operands),
                 "operand_of": operand_of.get(s.name),  # consumed by a union/difference
+                "where": s.where,  # file:line of the declaration
                 "args": [
                     {"name": k, "size": len(v) if isinstance(v, tuple) else 1}
                     for k, v in s.args.items()
