@@ -28,9 +28,7 @@ QUERIES: dict[str, Callable[[eac.Instance], Any]] = {
 
 @pytest.fixture(scope="module")
 def frame(tmp_path_factory: pytest.TempPathFactory) -> eac.Concept:
-    return eac.compile_paths([write(tmp_path_factory.mktemp("frame"), "frame.eac", FRAME)])[
-        "Frame"
-    ]
+    return eac.compile_paths([write(tmp_path_factory.mktemp("frame"), "frame.eac", FRAME)])["Frame"]
 
 
 @pytest.mark.parametrize("query", sorted(QUERIES))
