@@ -43,6 +43,18 @@ def random_instance(concept: eac.Concept, seed: int) -> eac.Instance:
     raise AssertionError(f"no valid draw of {concept.name}")
 
 
+def inside_by_rays(mesh: trimesh.Trimesh, pts: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``contains`` by a majority over five random rotations of mesh and points together (the
+    rays go along other directions through the same solid), one point at a time."""
+    votes = np.zeros(len(pts))
+    for _ in range(5):
+        turn = trimesh.transformations.random_rotation_matrix(rng.random(3))
+        turned = mesh.copy().apply_transform(turn)
+        moved = pts @ turn[:3, :3].T
+        votes += [turned.contains(p[None])[0] for p in moved]
+    return votes >= 3
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", _concepts())
 def test_union_mesh_is_the_solid_sdf_describes(name: str) -> None:
@@ -59,7 +71,12 @@ def test_union_mesh_is_the_solid_sdf_describes(name: str) -> None:
     far = np.abs(d) > FAR
     assert far.sum() > N_CONTAINS / 3
     agree = mesh.contains(pts[far]) == (d[far] < 0)
-    assert agree.all(), (name, pts[far][~agree], d[far][~agree])
+    # trimesh's ray test misses now and then (a ray grazing an edge, or the zero-width seam
+    # where two solids touch): ask again along other directions about the points it doubts
+    assert agree.mean() >= 0.98, (name, agree.mean())
+    if not agree.all():
+        again = inside_by_rays(mesh, pts[far][~agree], rng)
+        assert np.all(again == (d[far][~agree] < 0)), (name, pts[far][~agree], d[far][~agree])
     box = rng.uniform(lo, hi, (N_VOLUME, 3))
     share = float(np.mean(inst.sdf(box) < 0))
     size = float(np.prod(hi - lo))
