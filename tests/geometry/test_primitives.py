@@ -76,6 +76,7 @@ def test_casadi_parameter_gradient_is_finite(name: str) -> None:
         assert np.all(np.isfinite(np.asarray(jac(point, *defaults))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 @FAST
 @given(data=st.data())
