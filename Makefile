@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test lint bench verify gallery system-deps clean
+.PHONY: demo test test-fast lint bench bench-smoke verify gallery system-deps clean
 
 demo: $(STAMP)
 	$(BIN)/grace demo
@@ -15,12 +15,20 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
+# the local loop: every test not marked slow (> ~3 s; pyproject.toml lists the markers)
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -m "not slow"
+
 lint: $(STAMP)
 	$(BIN)/ruff check grace_dsl tests bench
 	$(BIN)/mypy grace_dsl
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_eval.py
+
+# every bench/ script at a tiny size (tests/bench): does each still run?
+bench-smoke: $(STAMP)
+	$(BIN)/python -m pytest -m bench tests/bench
 
 # every concept of the standard library, 200 random draws each (docs/benchmarks.md, verification)
 verify: $(STAMP)

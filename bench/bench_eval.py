@@ -1,15 +1,18 @@
 """Evaluation speed of the curved-handle pull grasp: hand-written numpy vs CasADi vs native C.
 
-    python bench/bench_eval.py [--n 100000] [--repeats 7]
+    python bench/bench_eval.py [--n 100000] [--repeats 7] [--out FILE] [--smoke]
 
 G(theta, r_out) = Rz(theta) T(0, -r_out, 0) R_rpy(pi/2, 0, pi/2) Ry(pi/2), a 4x4 homogeneous
 matrix: the paper's equation with its initial gripper pose G* = Ry(pi/2), exactly as the standard
 library's ``CurveHandle.pull`` states it.  The CasADi and native rows evaluate the function the
-compiler generates from ``concepts/handles.eac`` (inputs: the parameter vector p = (radian,
-r_in, r_out, height), the empty joint vector q and the free parameter theta).
+compiler generates from ``concepts/handles.eac`` (inputs: the parameter vector p, laid out as the
+concept's manifest says, with radian, r_in, r_out and height set and the rest at their defaults,
+the empty joint vector q and the free parameter theta).
 All variants run side by side in one process; each figure is the median over ``repeats``
 interleaved timeit runs (each sized by ``Timer.autorange``) of the time per call.  Results are
-printed and written to bench/results/eval.json.
+printed and written to bench/results/eval.json (``--out``).  ``--smoke`` runs every case at a tiny
+size (the test suite does, so a library change that breaks the script fails CI); its timings
+mean nothing and its targets do not set the exit status.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+import grace_dsl as eac
 from grace_dsl.compiler import native
 from grace_dsl.compiler.build import front_end
 from grace_dsl.compiler.functions import casadi_functions
@@ -84,43 +88,63 @@ def casadi_grasp() -> ca.Function:
     return casadi_functions(checked, "CurveHandle").functions["grasp:pull"]
 
 
-RADIAN, R_IN, HEIGHT = 2.0, 0.015, 0.012  # the parameters the benchmark keeps fixed
+FIXED = {"radian": 2.0, "r_in": 0.015, "height": 0.012}  # what the benchmark keeps fixed
 NO_JOINTS = np.zeros(0)
 
 
-def params(r_out: float | np.ndarray) -> np.ndarray:
-    """The parameter vector (radian, r_in, r_out, height); one row per r_out when batched."""
+def curve_handle() -> eac.Concept:
+    """The runtime's ``CurveHandle``: its manifest lays out the parameter vector."""
+    return eac.compile_paths([stdlib_dir() / "handles.eac"])["CurveHandle"]
+
+
+def params(concept: eac.Concept, r_out: float | np.ndarray) -> np.ndarray:
+    """The parameter vector of ``concept`` (FIXED, r_out, defaults for the rest, in manifest
+    order); one row per r_out when batched. Sizes and offsets come from the manifest, so a new
+    parameter does not break the benchmark."""
     r = np.atleast_1d(np.asarray(r_out, dtype=float))
-    p = np.column_stack([np.full_like(r, RADIAN), np.full_like(r, R_IN), r,
-                         np.full_like(r, HEIGHT)])
-    return p[0] if np.ndim(r_out) == 0 else p
+    base = concept.pack(**FIXED, r_out=float(r[0]))
+    rows = np.tile(base, (len(r), 1))
+    offset = next(s.offset for s in concept.params if s.name == "r_out")
+    rows[:, offset] = r
+    return rows[0] if np.ndim(r_out) == 0 else rows
 
 
 # ---------------------------------------------------------------- measurement
 
 
-def measure(calls: list[Callable[[], object]], repeats: int) -> list[dict[str, float]]:
+def measure(
+    calls: list[Callable[[], object]], repeats: int, number: int | None = None
+) -> list[dict[str, float]]:
     """Median and min seconds per call of each callable over ``repeats`` timeit runs.
 
-    Runs are sized by ``Timer.autorange`` (>= 0.2 s) and interleaved round-robin, so background
-    load on a shared machine hits all variants alike instead of skewing one of them.
+    Runs are sized by ``Timer.autorange`` (>= 0.2 s; ``number`` calls each when given) and
+    interleaved round-robin, so background load on a shared machine hits all variants alike
+    instead of skewing one of them.
     """
     timers = [timeit.Timer(call) for call in calls]
-    numbers = [timer.autorange()[0] for timer in timers]
+    numbers = [number or timer.autorange()[0] for timer in timers]
     per_call: list[list[float]] = [[] for _ in calls]
     for _ in range(repeats):
         for timer, number, samples in zip(timers, numbers, per_call, strict=True):
             samples.append(timer.timeit(number) / number)
-    return [{"median_s": statistics.median(p), "min_s": min(p), "number": n}
-            for p, n in zip(per_call, numbers, strict=True)]
+    return [
+        {"median_s": statistics.median(p), "min_s": min(p), "number": n}
+        for p, n in zip(per_call, numbers, strict=True)
+    ]
 
 
 def machine() -> dict[str, str | int | float]:
     model = platform.processor()
     try:
         lscpu = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
-        model = next(ln.split(":", 1)[1].strip() for ln in lscpu.splitlines()
-                     if ln.startswith("Model name")) or model
+        model = (
+            next(
+                ln.split(":", 1)[1].strip()
+                for ln in lscpu.splitlines()
+                if ln.startswith("Model name")
+            )
+            or model
+        )
     except (OSError, subprocess.SubprocessError, StopIteration):
         pass
     cc = native.find_compiler()
@@ -140,8 +164,16 @@ def fmt(seconds: float) -> str:
 
 def print_table(rows: list[dict[str, Any]], title: str) -> None:
     header = ["case", "median / call", "min / call", "speed-up vs numpy", "vs CasADi"]
-    cells = [[r["case"], fmt(r["median_s"]), fmt(r["min_s"]), f"{r['vs_numpy']:.1f}x",
-              f"{r['vs_casadi']:.1f}x"] for r in rows]
+    cells = [
+        [
+            r["case"],
+            fmt(r["median_s"]),
+            fmt(r["min_s"]),
+            f"{r['vs_numpy']:.1f}x",
+            f"{r['vs_casadi']:.1f}x",
+        ]
+        for r in rows
+    ]
     try:
         from rich.console import Console
         from rich.table import Table
@@ -165,9 +197,15 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=100_000, help="batch size")
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--out", type=Path, default=RESULTS, help="where the JSON goes")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: checks it runs")
     opts = parser.parse_args()
+    if opts.smoke:
+        opts.n, opts.repeats = 1000, 1
 
     fn = casadi_grasp()
+    handle = curve_handle()
+    assert fn.size1_in(0) == handle.entry["n_params"], "the manifest and the function disagree"
     with tempfile.TemporaryDirectory() as cold:
         start = time.perf_counter()
         native.fast_function(fn, Path(cold))
@@ -183,20 +221,19 @@ def main() -> int:
     thetas = rng.uniform(-math.pi, math.pi, opts.n)
     radii = rng.uniform(0.02, 0.08, opts.n)
 
-    p0, pn, qn = params(r0), params(radii), np.zeros((0, opts.n))
+    p0, pn, qn = params(handle, r0), params(handle, radii), np.zeros((0, opts.n))
     pt, tt = pn.T.copy(), thetas[None, :].copy()  # CasADi's map takes one column per sample
 
     # agreement before timing
     ref_single = numpy_single(theta0, r0)
     np.testing.assert_allclose(ev(p0, NO_JOINTS, theta0), ref_single, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(fn(p0, NO_JOINTS, theta0).full(), ref_single, rtol=1e-12,
-                               atol=1e-12)
+    np.testing.assert_allclose(fn(p0, NO_JOINTS, theta0).full(), ref_single, rtol=1e-12, atol=1e-12)
     ref_batch = numpy_batch(thetas, radii)
-    np.testing.assert_allclose(ev.batch(pn, NO_JOINTS, thetas), ref_batch, rtol=1e-12,
-                               atol=1e-12)
+    np.testing.assert_allclose(ev.batch(pn, NO_JOINTS, thetas), ref_batch, rtol=1e-12, atol=1e-12)
     mapped = fmap(pt, qn, tt).full()
-    np.testing.assert_allclose(mapped.reshape(4, opts.n, 4).transpose(1, 0, 2), ref_batch,
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        mapped.reshape(4, opts.n, 4).transpose(1, 0, 2), ref_batch, rtol=1e-12, atol=1e-12
+    )
 
     cases: list[tuple[str, str, Callable[[], object]]] = [
         ("single", "numpy (hand-written)", lambda: numpy_single(theta0, r0)),
@@ -205,21 +242,29 @@ def main() -> int:
         ("batch", f"numpy vectorised, N={opts.n:,}", lambda: numpy_batch(thetas, radii)),
         ("batch", f"CasADi map thread x2, N={opts.n:,}", lambda: fmap(pt, qn, tt)),
         ("batch", f"CasADi map serial, N={opts.n:,}", lambda: fmap_serial(pt, qn, tt)),
-        ("batch", f"native, 1 thread, N={opts.n:,}",
-         lambda: ev.batch(pn, NO_JOINTS, thetas, threads=1)),
+        (
+            "batch",
+            f"native, 1 thread, N={opts.n:,}",
+            lambda: ev.batch(pn, NO_JOINTS, thetas, threads=1),
+        ),
         ("batch", f"native, N={opts.n:,}", lambda: ev.batch(pn, NO_JOINTS, thetas)),
     ]
-    stats = measure([call for _, _, call in cases], opts.repeats)
-    rows: list[dict[str, Any]] = [{"kind": kind, "case": name, **stat}
-                                  for (kind, name, _), stat in zip(cases, stats, strict=True)]
+    stats = measure([call for _, _, call in cases], opts.repeats, 3 if opts.smoke else None)
+    rows: list[dict[str, Any]] = [
+        {"kind": kind, "case": name, **stat}
+        for (kind, name, _), stat in zip(cases, stats, strict=True)
+    ]
     for kind in ("single", "batch"):
         group = [r for r in rows if r["kind"] == kind]
         numpy_s, casadi_s = group[0]["median_s"], group[1]["median_s"]
         for r in group:
             r["vs_numpy"], r["vs_casadi"] = numpy_s / r["median_s"], casadi_s / r["median_s"]
 
-    by = {(r["kind"], i): r for kind in ("single", "batch")
-          for i, r in enumerate(x for x in rows if x["kind"] == kind)}
+    by = {
+        (r["kind"], i): r
+        for kind in ("single", "batch")
+        for i, r in enumerate(x for x in rows if x["kind"] == kind)
+    }
     native_single, native_batch = by[("single", 2)]["median_s"], rows[-1]["median_s"]
     targets = {
         "native single <= numpy single": native_single <= by[("single", 0)]["median_s"],
@@ -230,20 +275,33 @@ def main() -> int:
     info = machine()
     info["load_average_1min_after"] = round(os.getloadavg()[0], 2)  # background load during run
     print_table(rows, f"pull grasp evaluation on {info['cpu']} ({info['cores']} cores)")
-    print(f"native backend: {ev.backend}; cold compile + load {cold_build_s * 1e3:.0f} ms "
-          f"(cached afterwards); flags {' '.join(native.FLAG_TIERS[0])}")
+    print(
+        f"native backend: {ev.backend}; cold compile + load {cold_build_s * 1e3:.0f} ms "
+        f"(cached afterwards); flags {' '.join(native.FLAG_TIERS[0])}"
+    )
     for name, ok in targets.items():
         print(f"  [{'ok' if ok else 'MISSED'}] {name}")
 
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({
-        "command": "python bench/bench_eval.py " + " ".join(sys.argv[1:]),
-        "machine": info, "batch_n": opts.n, "repeats": opts.repeats,
-        "native_backend": ev.backend, "cold_build_s": cold_build_s,
-        "flags": list(native.FLAG_TIERS[0]), "rows": rows, "targets": targets,
-    }, indent=2) + "\n")
-    print(f"wrote {RESULTS}")
-    return 0 if all(targets.values()) else 1
+    opts.out.parent.mkdir(parents=True, exist_ok=True)
+    opts.out.write_text(
+        json.dumps(
+            {
+                "command": "python bench/bench_eval.py " + " ".join(sys.argv[1:]),
+                "machine": info,
+                "batch_n": opts.n,
+                "repeats": opts.repeats,
+                "native_backend": ev.backend,
+                "cold_build_s": cold_build_s,
+                "flags": list(native.FLAG_TIERS[0]),
+                "rows": rows,
+                "targets": targets,
+            },
+            indent=2,
+        )
+        + "\n"
+    )
+    print(f"wrote {opts.out}")
+    return 0 if opts.smoke or all(targets.values()) else 1
 
 
 if __name__ == "__main__":

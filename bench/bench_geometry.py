@@ -1,7 +1,8 @@
 """Geometry benchmarks: grace_dsl.geometry and the instance geometry against trimesh, same run.
 
-Run: ``.venv/bin/python bench/bench_geometry.py [--part sdf|sampling|all]`` (writes
-bench/results/geometry.json; a single part updates only its section).
+Run: ``.venv/bin/python bench/bench_geometry.py [--part sdf|sampling|mesh|all] [--out FILE]
+[--smoke]`` (writes bench/results/geometry.json; a single part updates only its section;
+``--smoke`` runs every part at a tiny size, as the test suite does).
 
 - ``sdf``: ``Instance.sdf`` of 100,000 points on a concept of ten posed primitives
   (bench/ten_primitives.eac: the min over its shapes of each shape's exact distance in its own
@@ -12,6 +13,10 @@ bench/results/geometry.json; a single part updates only its section).
   (``Instance.mesh`` and ``Instance.sample_surface_with_normals``: exact, outer surface only)
   against ``trimesh.sample.sample_surface`` on the same, already built mesh; per call, median
   and minimum over ``--repeats`` runs, and how far each method's samples are from the surface.
+- ``mesh``: ``Instance.mesh`` (the boolean union, manifold3d) against the concatenation of the
+  same pieces (``instance_mesh_concat``) per concept: time, faces, watertightness, volume, and
+  the share of points farther than 1 mm from the surface where ``mesh.contains`` agrees with
+  the sign of ``Instance.sdf``.
 """
 
 from __future__ import annotations
@@ -39,12 +44,14 @@ import trimesh  # noqa: E402
 
 import grace_dsl as eac  # noqa: E402
 from grace_dsl.geometry import PRIMITIVES, primitive_sdf  # noqa: E402
-from grace_dsl.runtime.shapes import instance_meshes  # noqa: E402
+from grace_dsl.runtime.shapes import instance_mesh_concat, instance_meshes  # noqa: E402
 
 N_POINTS = 100_000
 N_SUBSET = 1_000
 N_SAMPLES = 10_000
+N_CONTAINS = 1_000  # points per concept for the union's containment (ray tests are slow)
 CONCEPTS = ("ChestOfDrawers", "Microwave")  # 16 shapes, most drawer area hidden; 7 shapes
+MESH_CONCEPTS = ("Refrigerator", "ChestOfDrawers", "Microwave", "LeverFaucet", "RoundKnob")
 HIDDEN_PROBE = 2e-4  # m: a sample whose point 0.2 mm out along its normal is not outside is hidden
 RESULT = Path(__file__).parent / "results" / "geometry.json"
 RIG = Path(__file__).parent / "ten_primitives.eac"  # a concept of ten posed primitives
@@ -108,7 +115,7 @@ def per_primitive(repeats: int = 5) -> list[dict[str, Any]]:
     ]
 
 
-def run_sdf() -> dict[str, Any]:
+def run_sdf(repeats: int = 5) -> dict[str, Any]:
     """``Instance.sdf`` of the ten-primitive rig at 100,000 points against trimesh's queries on
     the same instance's mesh (``inst.mesh()``), in one process."""
     rng = np.random.default_rng(RIG_POSE_SEED)
@@ -122,7 +129,7 @@ def run_sdf() -> dict[str, Any]:
     sub = pts[:N_SUBSET]
     inst.sdf(sub)  # load the concept's functions outside the timing
     rows = []
-    t, d = _time(lambda: inst.sdf(pts))
+    t, d = _time(lambda: inst.sdf(pts), repeat=min(3, repeats))
     rows.append(_row("grace_dsl Instance.sdf (exact, numpy)", N_POINTS, t))
     # trimesh's ray-based contains needs about 1 GB and 4 s per 1,000 points of a scene like
     # this (10k points: 11 GB), so on this 24 GB machine it runs on the 1k subset; the
@@ -157,7 +164,7 @@ def run_sdf() -> dict[str, Any]:
         "rows": rows,
         "sign_agreement_with_trimesh_contains_beyond_1mm": agree,
         "max_abs_distance_difference_to_mesh_m": float(np.max(np.abs(np.abs(d[:N_SUBSET]) - dist))),
-        "per_primitive": per_primitive(),
+        "per_primitive": per_primitive(repeats),
     }
 
 
@@ -237,6 +244,55 @@ def run_sampling(concepts: tuple[str, ...], repeats: int) -> dict[str, Any]:
     }
 
 
+def mesh_case(lib: eac.Library, concept: str, repeats: int) -> dict[str, Any]:
+    """Union against concatenation on one instance at its defaults (times interleaved)."""
+    inst = lib[concept].instantiate()
+    stats, last = _round_robin(
+        {"union": lambda i: inst.mesh(), "concat": lambda i: instance_mesh_concat(inst)}, repeats
+    )
+    lo, hi = last["union"].bounds
+    pts = np.random.default_rng(0).uniform(lo - 0.02, hi + 0.02, (N_CONTAINS, 3))
+    d = inst.sdf(pts)
+    far = np.abs(d) > 1e-3
+    out: dict[str, Any] = {"concept": concept, "points_beyond_1mm": int(far.sum())}
+    for key, mesh in last.items():
+        out[key] = {
+            **stats[key],
+            "faces": len(mesh.faces),
+            "watertight": bool(mesh.is_watertight),
+            "volume_m3": float(mesh.volume),
+            "contains_agrees_with_sdf": float(np.mean(mesh.contains(pts[far]) == (d[far] < 0))),
+        }
+    out["union_over_concat_time"] = stats["union"]["median_s"] / stats["concat"]["median_s"]
+    return out
+
+
+def run_mesh(concepts: tuple[str, ...], repeats: int) -> dict[str, Any]:
+    lib = eac.load_library()
+    return {"repeats": repeats, "cases": [mesh_case(lib, c, repeats) for c in concepts]}
+
+
+def _print_mesh(result: dict[str, Any]) -> None:
+    print(
+        f"{'concept':<16}{'mesh':<8}{'median ms':>10}{'faces':>8}{'watertight':>11}"
+        f"{'volume m3':>11}{'contains=sdf':>13}"
+    )
+    for c in result["cases"]:
+        for key in ("concat", "union"):
+            m = c[key]
+            print(
+                f"{c['concept']:<16}{key:<8}{m['median_s'] * 1e3:>10.1f}{m['faces']:>8}"
+                f"{str(m['watertight']):>11}{m['volume_m3']:>11.5f}"
+                f"{m['contains_agrees_with_sdf']:>13.4f}"
+            )
+
+
+def _smoke() -> None:
+    """Tiny sizes for the test suite's smoke run: every code path, no meaningful timing."""
+    global N_POINTS, N_SUBSET, N_SAMPLES, N_CONTAINS
+    N_POINTS, N_SUBSET, N_SAMPLES, N_CONTAINS = 2_000, 50, 300, 100
+
+
 def _print_sdf(result: dict[str, Any]) -> None:
     print(f"{'method':<44}{'points':>8}{'time [s]':>11}{'us/point':>10}{'100k [s]':>10}")
     for r in result["rows"]:
@@ -282,11 +338,17 @@ def _print_sampling(result: dict[str, Any]) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("all", "sdf", "sampling"), default="all")
+    parser.add_argument("--part", choices=("all", "sdf", "sampling", "mesh"), default="all")
     parser.add_argument("--concepts", nargs="+", default=list(CONCEPTS))
+    parser.add_argument("--mesh-concepts", nargs="+", default=list(MESH_CONCEPTS))
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--out", type=Path, default=RESULT, help="where the JSON goes")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: checks it runs")
     args = parser.parse_args()
-    result: dict[str, Any] = json.loads(RESULT.read_text()) if RESULT.exists() else {}
+    if args.smoke:
+        _smoke()
+        args.repeats, args.concepts, args.mesh_concepts = 1, ["Microwave"], ["RoundKnob"]
+    result: dict[str, Any] = json.loads(args.out.read_text()) if args.out.exists() else {}
     if "sdf" not in result and "rows" in result:  # the layout before the sampling half
         result = {"sdf": {k: result[k] for k in result if k not in ("command", "machine")}}
     result.update(
@@ -300,14 +362,18 @@ def main() -> None:
         }
     )
     if args.part in ("all", "sdf"):
-        result["sdf"] = run_sdf()
+        result["sdf"] = run_sdf(min(args.repeats, 5))
         _print_sdf(result["sdf"])
     if args.part in ("all", "sampling"):
         result["sampling"] = run_sampling(tuple(args.concepts), args.repeats)
         _print_sampling(result["sampling"])
+    if args.part in ("all", "mesh"):
+        result["mesh"] = run_mesh(tuple(args.mesh_concepts), args.repeats)
+        _print_mesh(result["mesh"])
     result["loadavg"] = os.getloadavg()
-    RESULT.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {RESULT}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """What a picture costs: scene description, MuJoCo PNG and HTML page of every library concept.
 
-Run: ``.venv/bin/python bench/bench_render.py`` (writes bench/results/render.json). Every
+Run: ``.venv/bin/python bench/bench_render.py [--concepts NAME ...] [--out FILE] [--smoke]``
+(writes bench/results/render.json; ``--smoke``: one concept, as the test suite runs it). Every
 concept of the standard library at its defaults: ``describe`` (meshes per link, grasps, forces,
 joint axes), ``render_image`` at 640x480 (MJCF export, MuJoCo model compile, GL context, render,
 read back) with ``MUJOCO_GL`` as set (default here: osmesa, software), the palette PNG's size,
@@ -9,6 +10,7 @@ and the HTML page's size and build time. The first render also pays MuJoCo's imp
 
 from __future__ import annotations
 
+import argparse
 import io
 import json
 import os
@@ -38,13 +40,19 @@ def _timed(fn: Any) -> tuple[Any, float]:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--concepts", nargs="+", help="only these (default: every concept)")
+    parser.add_argument("--out", type=Path, default=OUT, help="where the JSON goes")
+    parser.add_argument("--smoke", action="store_true", help="one concept: checks it runs")
+    args = parser.parse_args()
+    if args.smoke:
+        args.concepts = args.concepts or ["LidBox"]
     lib = eac.load_library()
     _, import_s = _timed(import_mujoco)
     rows = []
-    for name in lib:
+    names = args.concepts or [n for n in lib if lib[n].entry["kind"] == "concept"]
+    for name in names:
         concept = lib[name]
-        if concept.entry["kind"] != "concept":
-            continue
         inst = concept.instantiate()
         scene, t_describe = _timed(lambda inst=inst: describe(inst))
         img, t_png = _timed(lambda s=scene, i=inst: render_image(s, 640, 480, build_model(i)))
@@ -79,8 +87,8 @@ def main() -> None:
         "summary": summary,
         "rows": rows,
     }
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps(result, indent=2) + "\n")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(json.dumps(summary, indent=2))
 
 

@@ -63,7 +63,8 @@ def write_instance_mesh(
     resolution: int = 64,
 ) -> trimesh.Trimesh:
     """Write the instance (or one link) to ``path`` as ``fmt`` (default: the file's suffix);
-    returns the mesh written, all links concatenated."""
+    returns the mesh written: the instance's one closed solid (``inst.mesh()``) or the link's;
+    GLB keeps the links apart."""
     target = output_file(path, f".{fmt or 'obj'}")
     kind = (fmt or target.suffix.lstrip(".")).lower()
     if kind not in MESH_FORMATS:
@@ -71,8 +72,7 @@ def write_instance_mesh(
             f"cannot write {target.name!r} as a mesh: use one of " + ", ".join(MESH_FORMATS)
         )
     meshes = instance_meshes(inst, link, resolution)
-    merged = trimesh.util.concatenate(list(meshes.values()))
-    assert isinstance(merged, trimesh.Trimesh)
+    merged = inst.mesh(resolution) if link is None else meshes[link]
     target.parent.mkdir(parents=True, exist_ok=True)
     if kind == "glb":
         target.write_bytes(_coloured(inst, meshes).export(file_type="glb"))

@@ -30,6 +30,7 @@ from grace_dsl.geometry.sdf import TAPER_FACES, taper_corners
 
 DEFAULT_RESOLUTION = 64  # segments per full circle: volume error ~0.2 % (sphere ~0.3 %)
 _FULL_TOL = 1e-9
+_SNAP = 1e-6  # relative size below which a radius or a corner offset is built as 0
 
 Arr = NDArray[np.float64]
 Tri = NDArray[np.int64]
@@ -130,29 +131,68 @@ def _sphere(p: Params, res: int) -> trimesh.Trimesh:
 
 
 def _capsule(p: Params, res: int) -> trimesh.Trimesh:
-    return trimesh.creation.capsule(
-        height=_f(p["length"]), radius=_f(p["radius"]), count=[res, res]
-    )
+    """Built at unit radius and scaled: trimesh merges the rings near the poles of a capsule
+    whose radius is small next to its length (a 4 mm x 476 mm bar lost 256 faces)."""
+    r = _f(p["radius"])
+    mesh = trimesh.creation.capsule(height=_f(p["length"]) / r, radius=1.0, count=[res, res])
+    return mesh.apply_scale(r)
 
 
 def _frustum(p: Params, res: int) -> trimesh.Trimesh:
+    """Two rings (a ring of radius 0 is an apex) joined by a strip, closed by fans, built at
+    unit height and unit larger radius, then scaled per axis (a frustum scaled in z stays one),
+    with no vertex merging: trimesh's revolve dropped the faces of a radius tiny next to the
+    other. A radius below ``_SNAP`` of the larger is the apex."""
     r1, r2, h = _f(p["r_bottom"]), _f(p["r_top"]), _f(p["height"])
-    profile = [[0.0, -h / 2]] + [[r, z] for r, z in ((r1, -h / 2), (r2, h / 2)) if r > 0]
-    return trimesh.creation.revolve(np.array(profile + [[0.0, h / 2]]), sections=res)
+    big = max(r1, r2)
+    n = res
+    rings, faces = [], []
+    for r, z in ((r1 / big, -0.5), (r2 / big, 0.5)):
+        if r > _SNAP:
+            rings.append(np.column_stack([_arc(r, 0.0, FULL_TURN, n, True), np.full(n, z)]))
+        else:
+            rings.append(np.array([[0.0, 0.0, z]]))
+    bottom, top = rings
+    centres = [np.array([[0.0, 0.0, -0.5]])] if len(bottom) > 1 else []
+    centres += [np.array([[0.0, 0.0, 0.5]])] if len(top) > 1 else []
+    verts = np.vstack([bottom, top, *centres])
+    nb = len(bottom)
+    # every triangle outward: the rings run counter-clockwise seen from +z
+    if nb > 1 and len(top) > 1:
+        faces.append(_strip(0, nb, n, True)[:, [0, 2, 1]])
+    elif nb > 1:  # apex on top
+        faces.append(_fan(nb, 0, n, True))
+    else:  # apex at the bottom
+        faces.append(_fan(0, 1, n, True)[:, [0, 2, 1]])
+    at = nb + len(top)
+    if nb > 1:  # bottom cap, facing -z
+        faces.append(_fan(at, 0, n, True)[:, [0, 2, 1]])
+        at += 1
+    if len(top) > 1:
+        faces.append(_fan(at, nb, n, True))
+    mesh = trimesh.Trimesh(verts, np.vstack(faces), process=False)
+    return mesh.apply_transform(np.diag([big, big, h, 1.0]))
 
 
 def _tapered_cuboid(p: Params, res: int) -> trimesh.Trimesh:
     """The six faces as two triangles each (exact: the faces are planar). A top of zero width
-    or depth (a wedge or a pyramid) merges corners; the triangles that collapse are dropped."""
+    or depth (a wedge or a pyramid) merges corners; the triangles that collapse are dropped.
+    The corners are built per axis in units of the solid's extent and snapped to ``_SNAP`` of
+    it (scaling an axis keeps faces planar), so a top or size tiny next to the rest merges
+    into an edge or apex instead of leaving slivers that tear the mesh."""
     corners = taper_corners(p)
     index = {k: i for i, k in enumerate(corners)}
     verts = np.array(list(corners.values()))
+    lo, extent = verts.min(axis=0), np.ptp(verts, axis=0)
+    unit = np.round((verts - lo) / extent / _SNAP) * _SNAP
     quads = np.array([[index[k] for k in quad] for quad in TAPER_FACES])
     faces = np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    mesh = trimesh.Trimesh(verts, faces, process=True)  # merges the corners a collapsed top shares
+    mesh = trimesh.Trimesh(unit, faces, process=True)  # merges the corners a collapsed top shares
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.remove_unreferenced_vertices()
-    return mesh
+    scale = np.diag([*extent, 1.0])
+    scale[:3, 3] = lo
+    return mesh.apply_transform(scale)
 
 
 def _spherical_cap(p: Params, res: int) -> trimesh.Trimesh:

@@ -12,6 +12,11 @@ Two views of the same tree: *pieces* (solids with meshes, at q = 0 in the concep
 becomes its operands, a difference one boolean mesh, which needs ``manifold3d``) for meshes and
 exports, and the *signed distance* (min over a union, max(a, -b) for a difference: exact outside
 a union, a bound elsewhere that is exact on the surface) for fitting and containment.
+
+Parameters inside their declared ranges can still give a shape arguments no solid has (a
+``RectRing`` whose opening closes up, a height that divides by a parameter that reached 0): the
+tree checks each shape's arguments and pose once, and raises ``ShapeError`` naming the concept,
+the shape, its ``file:line``, the problem and the parameter values, never a bare geometry error.
 """
 
 from __future__ import annotations
@@ -25,10 +30,42 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trimesh
 
-from grace_dsl.geometry import primitive_mesh, primitive_sdf
+from grace_dsl.compiler.types import format_si
+from grace_dsl.geometry import GeometryError, primitive_mesh, primitive_sdf, validate
+from grace_dsl.runtime.errors import ParameterError
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
+
+
+class ShapeError(ParameterError):
+    """Parameter values, inside their ranges, that give a shape invalid arguments or pose.
+
+    ``concept``, ``shape``, ``primitive``, ``where`` (``file.eac:line`` of the declaration),
+    ``problem`` and ``values`` (the instance's parameters, as people read them) are attributes,
+    so ``eacc verify`` reports the draw instead of crashing."""
+
+    def __init__(
+        self, concept: str, shape: str, primitive: str, where: str, problem: str, values: str
+    ):
+        self.concept, self.shape, self.primitive = concept, shape, primitive
+        self.where, self.problem, self.values = where, problem, values
+        at = f"{primitive}, {where}" if where else primitive
+        super().__init__(
+            f"{concept}: shape {shape} ({at}) cannot be built: {problem}"
+            + (f"; with {values}" if values else "")
+        )
+
+
+def parameter_text(inst: Instance) -> str:
+    """``a = 20mm, b = (1, 2)``: an instance's parameters in display units (mm, deg)."""
+    values = inst.params
+    out = []
+    for spec in inst.concept.params:
+        v = values[spec.name]
+        text = format_si(v, spec.dim) if spec.kind in ("num", "vec") else repr(v)
+        out.append(f"{spec.name} = {text}")
+    return ", ".join(out)
 
 
 @dataclass(frozen=True)
@@ -80,6 +117,7 @@ class ShapeTree:
         self.q0 = np.zeros_like(inst.q)
         self._links: dict[str, np.ndarray] = {}
         self._evaluated: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._params: dict[str, dict[str, Any]] = {}
         own = primitive_own_shape(inst.concept)
         if own is not None and not self.shapes:
             self.shapes[own["name"]] = own
@@ -102,15 +140,22 @@ class ShapeTree:
         return self._links[link]
 
     def evaluate(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The shape's pose (concept frame, q = 0), primitive arguments and ``at``."""
+        """The shape's pose (concept frame, q = 0), primitive arguments and ``at``; a pose that
+        is not finite raises ``ShapeError``."""
         if name not in self._evaluated:
             pose, args, at = self.inst.concept.function("shape", name)(self.inst.p, self.q0)
-            self._evaluated[name] = (
-                np.asarray(pose, float),
-                np.asarray(args, float).reshape(-1),
-                np.asarray(at, float),
-            )
+            pose, at = np.asarray(pose, float), np.asarray(at, float)
+            if not (np.all(np.isfinite(pose)) and np.all(np.isfinite(at))):
+                raise self.error(name, f"its pose is not finite: {np.round(pose, 6).tolist()}")
+            self._evaluated[name] = (pose, np.asarray(args, float).reshape(-1), at)
         return self._evaluated[name]
+
+    def error(self, name: str, problem: str) -> ShapeError:
+        """The typed error for shape ``name`` of this instance."""
+        s = self.shapes[name]
+        where = s.get("where") or self.inst.concept.entry.get("file", "")
+        concept = self.inst.concept.name
+        return ShapeError(concept, name, s["primitive"], where, problem, parameter_text(self.inst))
 
     def relative(self, name: str) -> np.ndarray:
         """The shape's ``at``: its pose in the frame that declares it (a part's shapes in the
@@ -122,14 +167,30 @@ class ShapeTree:
         return self.evaluate(name)[0]
 
     def params(self, name: str) -> dict[str, Any]:
-        args = self.evaluate(name)[1]
-        out: dict[str, Any] = {}
-        i = 0
-        for a in self.shapes[name]["args"]:
-            size = a["size"]
-            out[a["name"]] = float(args[i]) if size == 1 else tuple(map(float, args[i : i + size]))
-            i += size
-        return out
+        """The primitive's checked arguments (SI); arguments no solid has raise ``ShapeError``."""
+        if name not in self._params:
+            args = self.evaluate(name)[1]
+            out: dict[str, Any] = {}
+            i = 0
+            for a in self.shapes[name]["args"]:
+                size = a["size"]
+                value = args[i : i + size]
+                out[a["name"]] = float(value[0]) if size == 1 else tuple(map(float, value))
+                i += size
+            try:
+                self._params[name] = dict(validate(self.shapes[name]["primitive"], out))
+            except GeometryError as exc:
+                raise self.error(name, str(exc)) from None
+        return self._params[name]
+
+    def check(self) -> None:
+        """Evaluate every outermost shape and its operands: raises ``ShapeError`` for the first
+        whose arguments or pose are invalid."""
+        for name in self.shapes:
+            if self.shapes[name]["primitive"] in ("union", "difference"):
+                self.evaluate(name)
+            else:
+                self.params(name)
 
     # -- pieces ------------------------------------------------------------------------------
     def pieces(self, name: str, place: np.ndarray, warnings: list[str]) -> list[Piece]:
@@ -152,6 +213,8 @@ class ShapeTree:
                 for op in self.shapes[name]["operands"]
             ]
             result = trimesh.boolean.difference(solids, engine="manifold")
+        except ShapeError:
+            raise
         except (ImportError, ValueError) as exc:
             warnings.append(f"shape {name} (a difference) skipped: {exc}")
             return []
@@ -217,7 +280,27 @@ def instance_meshes(
 
 
 def instance_mesh(inst: Instance, link: str | None = None, resolution: int = 64) -> trimesh.Trimesh:
-    """One mesh of every outermost shape (of ``link``, or of all links), in the world."""
+    """One closed solid of every outermost shape (of ``link``, or of all links), in the world:
+    the boolean union of the pieces (manifold3d), so ``contains``, ``volume`` and
+    ``is_watertight`` are those of the instance. ``instance_mesh_concat`` is the faster soup."""
+    meshes = instance_meshes(inst, link, resolution)
+    if len(meshes) < 2:
+        return meshes[0] if meshes else trimesh.Trimesh()
+    return union_mesh(meshes)
+
+
+def union_mesh(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The boolean union of closed meshes (manifold3d, trimesh's ``manifold`` engine)."""
+    merged = trimesh.boolean.union(meshes, engine="manifold")
+    assert isinstance(merged, trimesh.Trimesh)
+    return merged
+
+
+def instance_mesh_concat(
+    inst: Instance, link: str | None = None, resolution: int = 64
+) -> trimesh.Trimesh:
+    """The pieces' meshes concatenated, overlaps and buried faces kept: cheaper than
+    ``instance_mesh`` and fine for pictures, wrong for ``contains`` and ``volume``."""
     meshes = instance_meshes(inst, link, resolution)
     merged = trimesh.util.concatenate(meshes) if meshes else trimesh.Trimesh()
     assert isinstance(merged, trimesh.Trimesh)

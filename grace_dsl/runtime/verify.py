@@ -26,6 +26,16 @@ and for every action, for the grasps it uses (``using``, else the grasps on the 
 ``follow``       ``inst.follow`` keeps the grasp attached to its link: G_k = L(q_k) L(q_0)^-1 G_0
                  to 1e-6, with L the link pose computed independently.
 
+Before those, every draw must be computable, or it fails instead of crashing the run:
+
+``shape``        every shape's arguments describe a solid and its pose is finite (a ``RectRing``
+                 whose opening closes up fails here: member ``shape (file:line)``);
+``finite``       every grasp pose, width and force is finite (a formula that divides by a
+                 parameter whose range reaches 0 fails here: member ``grasp (file:line)``).
+
+Each continuous parameter takes one of its range's ends in ``1 / ENDS`` of the draws (each end
+half of those), so formulas that break at a bound are found.
+
 Each failure keeps the values that caused it, in display units (mm, deg) and in SI (to reproduce
 it with ``concept.instantiate``). Per draw, the worst sample of each check and member is kept.
 """
@@ -41,10 +51,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.types import format_si
-from grace_dsl.runtime.errors import ParameterError, RequirementError
+from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
 from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.instance import TWIST_VERBS, _spread
-from grace_dsl.runtime.shapes import ShapeTree
+from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -58,8 +68,20 @@ UNIT = 1e-9  # tolerance on |force| = 1
 FREE_SAMPLES = 5  # free-parameter values per grasp family (spread over its box)
 FOLLOW_STEPS = 8
 MAX_ATTEMPTS = 50  # draws attempted per requested draw before giving up on a tight `require`
+ENDS = 10  # one continuous parameter value in ENDS sits on an end of its range
 
-CHECKS = ("near", "between", "width", "penetration", "into", "power", "unit_force", "follow")
+CHECKS = (
+    "shape",
+    "finite",
+    "near",
+    "between",
+    "width",
+    "penetration",
+    "into",
+    "power",
+    "unit_force",
+    "follow",
+)
 
 
 @dataclass(frozen=True)
@@ -243,6 +265,10 @@ def verify_concept(
             inst = concept.instantiate(pose=pose, **values)
         except RequirementError:
             continue
+        except ParameterError as exc:  # in range, yet refused: a formula of the concept fails
+            accepted += 1
+            run.refused(values, pose, exc)
+            continue
         accepted += 1
         run.check_draw(inst)
     note = ""
@@ -255,7 +281,8 @@ def verify_concept(
 
 
 def draw_params(concept: Concept, rng: np.random.Generator) -> dict[str, Any]:
-    """A value of every parameter, uniform inside its range (per component for vectors)."""
+    """A value of every parameter, uniform inside its range (per component for vectors), a
+    continuous component on one of its range's ends in ``1 / ENDS`` of the draws."""
     out: dict[str, Any] = {}
     for p in concept.params:
         if p.kind == "choice":
@@ -266,10 +293,18 @@ def draw_params(concept: Concept, rng: np.random.Generator) -> dict[str, Any]:
         elif p.kind == "int":
             out[p.name] = int(rng.integers(math.ceil(p.lo), math.floor(p.hi) + 1))
         elif p.kind == "vec":
-            out[p.name] = tuple(float(v) for v in rng.uniform(p.lo, p.hi))
+            out[p.name] = tuple(map(float, _uniform_or_end(p.lo, p.hi, rng)))
         else:
-            out[p.name] = float(rng.uniform(p.lo, p.hi))
+            out[p.name] = float(_uniform_or_end(p.lo, p.hi, rng)[0])
     return out
+
+
+def _uniform_or_end(lo: Any, hi: Any, rng: np.random.Generator) -> np.ndarray:
+    """Uniform in [lo, hi] per component; a component is lo or hi, each in 1 / (2 ENDS)."""
+    lo, hi = np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
+    x = rng.uniform(lo, hi)
+    end = rng.integers(2 * ENDS, size=x.shape)
+    return np.where(end == 0, lo, np.where(end == 1, hi, x))
 
 
 def random_pose(rng: np.random.Generator) -> np.ndarray:
@@ -296,6 +331,7 @@ class _Geometry:
     def __init__(self, inst: Instance):
         self.inst = inst
         self.tree = ShapeTree(inst)
+        self.tree.check()  # every shape's arguments and pose, before any distance
         # world <- concept frame at q = 0, per link: where each link's shapes are now
         self.motions = {
             link: inst.link_pose(link) @ np.linalg.inv(self.tree.link_pose(link))
@@ -372,18 +408,80 @@ class _Run:
 
     def check_draw(self, inst: Instance) -> None:
         """Every check at the closed joints and at random joint values; per check and member,
-        the worst failing sample of the draw is kept."""
+        the worst failing sample of the draw is kept. A draw whose shapes or formulas cannot be
+        evaluated fails ``shape`` or ``finite`` (with what broke) instead of raising."""
         self._worst = {}
-        for state in (inst, self._random_joints(inst)):
-            geo = _Geometry(state)
-            samples = {g: self._samples(state, g) for g in self.concept.grasps}
-            for ss in samples.values():
-                self._check_grasp(state, geo, ss)
-            for action, entry in self.concept.actions.items():
-                for g in _action_grasps(self.concept, entry):
-                    for s in samples[g]:
-                        self._check_action(state, action, entry, s)
+        for moved in (False, True):
+            state = inst
+            try:
+                state = self._random_joints(inst) if moved else inst
+                self._check_state(state)
+            except ShapeError as exc:
+                self._broken(state, "shape", f"{exc.shape} ({exc.where})", str(exc))
+                break
+            except GraceError as exc:  # a runtime query refused a value the draw produced
+                self._broken(state, "finite", self.concept.name, str(exc))
+                break
         self._failures += [f for _, f in self._worst.values()]
+
+    def _check_state(self, state: Instance) -> None:
+        geo = _Geometry(state)
+        self.evaluated["shape"] += 1
+        samples = {g: self._finite_samples(state, g) for g in self.concept.grasps}
+        for ss in samples.values():
+            if ss:
+                self._check_grasp(state, geo, ss)
+        for action, entry in self.concept.actions.items():
+            for g in _action_grasps(self.concept, entry):
+                for s in samples[g]:
+                    self._check_action(state, action, entry, s)
+
+    def refused(self, values: Mapping[str, Any], pose: np.ndarray, exc: ParameterError) -> None:
+        """A draw inside every range that ``instantiate`` refused (not for a ``require``): a
+        formula of the concept (a joint limit, a requirement) is not finite there."""
+        self.evaluated["finite"] += 1
+        params = {k: str(v) for k, v in values.items()}
+        si = {"params": {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}}
+        si["pose"] = pose.tolist()
+        name = self.concept.name
+        self._failures.append(Failure(name, "finite", name, params, 0.0, 0.0, "", str(exc), si))
+
+    def _broken(self, inst: Instance, check: str, member: str, message: str) -> None:
+        """Record a draw that cannot be checked (its values are the draw's parameters)."""
+        self.evaluated[check] += 1
+        failure = Failure(
+            self.concept.name,
+            check,
+            member,
+            _display(inst, None, {}),
+            0.0,
+            0.0,
+            "",
+            message,
+            _si(inst, {}),
+        )
+        self._worst[(check, member)] = (math.inf, failure)
+
+    def _finite_samples(self, inst: Instance, grasp: str) -> list[_Sample]:
+        """The grasp's samples whose poses (and declared width) are finite; one ``finite``
+        failure for the family names the grasp's declaration and the first bad value."""
+        samples = self._samples(inst, grasp)
+        width = inst.grasp_width(grasp)
+        good = [s for s in samples if np.all(np.isfinite(s.pose))]
+        self.evaluated["finite"] += len(samples)
+        bad = next((s for s in samples if not np.all(np.isfinite(s.pose))), None)
+        if bad is None and (width is None or math.isfinite(width)):
+            return good
+        where = self.concept.grasps[grasp].get("where", "")
+        member = f"{grasp} ({where})" if where else grasp
+        what = (
+            "its pose has NaN or infinite entries" if bad is not None else f"its width is {width}"
+        )
+        at = f" ({where})" if where else ""
+        message = f"grasp {grasp}{at} is not finite with {parameter_text(inst)}: {what}"
+        s = bad or samples[0]
+        self._record(inst, member, s, _Measure("finite", False, math.inf, 0.0, 0.0, "", message))
+        return good if width is None or math.isfinite(width) else []
 
     def _random_joints(self, inst: Instance) -> Instance:
         joints = {}
@@ -551,6 +649,10 @@ class _Run:
             if entry["verb"] in TWIST_VERBS:  # on the axis: the hand turns (inst.twist)
                 return
             self._record(inst, member, s, _Measure("power", False, 1.0, 0.0, 0.0, "", str(exc)))
+            return
+        if not np.all(np.isfinite(f)):
+            message = f"the force of {action} is not finite: {np.round(f, 6).tolist()}"
+            self._record(inst, member, s, _Measure("finite", False, math.inf, 0, 0, "", message))
             return
         v = _grasp_velocity(inst, self.concept.grasps[s.grasp]["link"], joint, s.pose)
         speed = float(np.linalg.norm(v))

@@ -42,6 +42,7 @@ def test_check_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     ]
 
 
+@pytest.mark.slow
 def test_usage_errors_exit_2() -> None:
     for argv in (["frobnicate"], ["check"], []):
         proc = subprocess.run(

@@ -7,6 +7,7 @@ import multiprocessing as mp
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from grace_dsl.compiler.build import build, export_library
 from grace_dsl.runtime.library import Library, load_artifact
@@ -81,6 +82,7 @@ def _build_in_process(args: tuple[str, str]) -> list[str]:
     return sorted(u.key for u in result.units)
 
 
+@pytest.mark.slow
 def test_two_processes_building_the_same_cache(tmp_path: Path) -> None:
     src, cache = library_dir(tmp_path), tmp_path / "cache"
     ctx = mp.get_context("spawn")

@@ -9,8 +9,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-import trimesh
 from hypothesis import strategies as st
 
 LEN = st.floats(0.005, 0.3)
@@ -66,25 +64,3 @@ def params_for(draw: Any, name: str) -> dict[str, Any]:
         sides = draw(st.one_of(st.integers(3, 12), st.just(64)))
         return {"sides": sides, "radius": draw(LEN), "height": draw(LEN)}
     raise AssertionError(name)
-
-
-def winding_number(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
-    """Generalised winding number (Van Oosterom-Strackee solid angles): ~1 inside, ~0 outside.
-
-    ``mesh.contains`` needs rtree, which is not installed; this is exact for closed meshes.
-    """
-    tri = mesh.triangles
-    out = np.empty(len(points))
-    for s in range(0, len(points), 256):
-        p = points[s : s + 256]
-        a, b, c = (tri[None, :, k, :] - p[:, None, :] for k in range(3))
-        la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
-        det = np.einsum("ijk,ijk->ij", a, np.cross(b, c))
-        den = (
-            la * lb * lc
-            + np.einsum("ijk,ijk->ij", a, b) * lc
-            + np.einsum("ijk,ijk->ij", b, c) * la
-            + np.einsum("ijk,ijk->ij", c, a) * lb
-        )
-        out[s : s + 256] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
-    return out

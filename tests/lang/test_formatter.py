@@ -360,6 +360,7 @@ def depth(e: ast.Expr) -> int:
 EXPRS = st.recursive(LEAVES, _compound, max_leaves=30).filter(lambda e: depth(e) <= 40)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, derandomize=True, deadline=None)
 @given(EXPRS)
 def test_random_expressions_round_trip(e: ast.Expr) -> None:
@@ -372,6 +373,7 @@ def test_random_expressions_round_trip(e: ast.Expr) -> None:
     assert formatted(text) == text
 
 
+@pytest.mark.slow
 @settings(max_examples=40, derandomize=True, deadline=None)
 @given(st.data())
 def test_comments_and_blank_lines_anywhere(data: st.DataObject) -> None:

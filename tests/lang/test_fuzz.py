@@ -142,6 +142,7 @@ EDITS = st.lists(
 )
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=60)
 @given(name=st.sampled_from(FILES), edits=EDITS)
 def test_token_edits(name: str, edits: list[tuple[str, int, int]]) -> None:
@@ -151,6 +152,7 @@ def test_token_edits(name: str, edits: list[tuple[str, int, int]]) -> None:
     front_end(name, text)
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=25)
 @given(name=st.sampled_from(FILES), where=st.floats(0, 1))
 def test_truncation(name: str, where: float) -> None:
@@ -158,6 +160,7 @@ def test_truncation(name: str, where: float) -> None:
     front_end(name, data[: int(len(data) * where)])
 
 
+@pytest.mark.slow
 @FUZZ
 @given(name=st.sampled_from(FILES), where=st.floats(0, 1),
        junk=st.one_of(st.binary(min_size=1, max_size=16),
@@ -169,6 +172,7 @@ def test_random_bytes(name: str, where: float, junk: bytes) -> None:
     front_end(name, data[:at] + junk + data[at:])
 
 
+@pytest.mark.slow
 @FUZZ
 @given(name=st.sampled_from(FILES), where=st.floats(0, 1), junk=st.text(min_size=1, max_size=12))
 def test_random_text(name: str, where: float, junk: str) -> None:
@@ -181,6 +185,7 @@ HUGE = ["1e400", "1e400mm", "9" * 400, "9" * 400 + "deg", "1" + "0" * 308, "1e30
         "0." + "0" * 400 + "1", "1e-400mm", "4e-324", "0", "0mm", "-0", "1e308m"]
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=20)
 @given(name=st.sampled_from(FILES), which=st.integers(0, 10_000), huge=st.sampled_from(HUGE))
 def test_huge_numbers(name: str, which: int, huge: str) -> None:
@@ -325,6 +330,7 @@ def _concept(members: list[str]) -> str:
     return HEADER + "".join(f"    {m}\n" for m in members) + "}\n"
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=40)
 @given(chosen=st.lists(st.sampled_from(EXTRA), unique=True, max_size=14),
        twice=st.lists(st.sampled_from(DUPLICABLE), max_size=2), data=st.randoms())

@@ -18,6 +18,7 @@ from grace_dsl.geometry import PRIMITIVES
 from tests.render.conftest import TOYBOX, needs_gl
 
 
+@pytest.mark.slow
 @needs_gl
 def test_show_writes_png_and_html(tmp_path, capsys) -> None:
     png, page = tmp_path / "box.png", tmp_path / "box.html"

@@ -81,12 +81,14 @@ def _check_drawn(img: np.ndarray) -> None:
     assert (np.abs(img[5, 320].astype(int) - bg) <= 2).all()  # the page's background
 
 
+@pytest.mark.slow
 @needs_chromium
 def test_chromium_draws_the_page(scene, tmp_path) -> None:
     page = write_html(scene, tmp_path / "box.html")
     _check_drawn(_screenshot(page, tmp_path / "shot.png"))
 
 
+@pytest.mark.slow
 @needs_chromium
 def test_chromium_draws_the_canvas_2d_fallback(scene, tmp_path) -> None:
     page = write_html(scene, tmp_path / "box.html")

@@ -68,7 +68,10 @@ def test_the_mesh_moves_with_the_joints(door: eac.Instance) -> None:
     closed = eac.load_library()["SunkenDoor"].instantiate(pose=door.pose)
     motion = door.link_pose("leaf") @ np.linalg.inv(closed.link_pose("leaf"))
     moved = closed.link_mesh("leaf").apply_transform(motion)
-    np.testing.assert_allclose(door.link_mesh("leaf").vertices, moved.vertices, atol=1e-12)
+    # a union (manifold3d, float32 vertices): the same solid to ~1e-7 m, in its own triangles
+    opened = door.link_mesh("leaf")
+    assert opened.volume == pytest.approx(moved.volume, rel=1e-5)
+    assert np.abs(trimesh.proximity.signed_distance(moved, opened.vertices)).max() < 1e-6
     assert door.mesh().is_watertight or len(door.mesh().faces) > 0
 
 

@@ -59,6 +59,7 @@ def test_the_manifest_states_mode_symmetry_and_demands(cap: eac.Concept) -> None
     assert (rim["mode"], rim["demands"]) == ("hook", {"closes": False, "orientation": "full"})
 
 
+@pytest.mark.slow
 @settings(max_examples=30, deadline=None)
 @given(r0=rotations, ref=rotations, axis=st.tuples(*[st.floats(-1, 1)] * 3))
 def test_minimal_spin_beats_every_other_spin(r0: np.ndarray, ref: np.ndarray, axis: tuple) -> None:

@@ -1,0 +1,48 @@
+"""Every script in bench/ runs at a tiny size (``--smoke``) and writes its result, so a library
+change that breaks a benchmark fails the suite instead of rotting until someone runs
+``make bench`` (bench_eval.py stopped on CurveHandle's new parameter that way)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPTS = sorted(p.name for p in (ROOT / "bench").glob("bench_*.py"))
+
+
+def test_every_script_is_smoke_tested() -> None:
+    assert SCRIPTS == [
+        "bench_eval.py",
+        "bench_geometry.py",
+        "bench_render.py",
+        "bench_runtime.py",
+        "bench_verify.py",
+    ]
+
+
+@pytest.mark.bench
+@pytest.mark.slow
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_smoke_run(script: str, tmp_path: Path) -> None:
+    out = tmp_path / "result.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}  # this checkout's grace_dsl; the test cache
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / script), "--smoke", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    result = json.loads(out.read_text())
+    assert result, script
+    assert run.stdout.strip()
+    committed = ROOT / "bench" / "results"
+    assert not any(p.stat().st_mtime > out.stat().st_mtime for p in committed.glob("*.json"))
