@@ -11,7 +11,7 @@ An instance counts as reachable when some family is; the report gives both fract
 instances only the manifold version reaches, and the time per instance.
 
     python bench/bench_grasp_ik.py               # 8 draws per concept (docs/benchmarks.md)
-    python bench/bench_grasp_ik.py --draws 1 --only CabinetDrawer --smoke
+    python bench/bench_grasp_ik.py --smoke       # 1 draw of 3 concepts, no result file
 """
 
 from __future__ import annotations
@@ -104,13 +104,17 @@ def _instance(concept, rng, draw_params, place):  # type: ignore[no-untyped-def]
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--draws", type=int, default=8)
+    ap.add_argument("--draws", type=int, default=None, help="per concept (8; --smoke 1)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--only", nargs="*", default=None, help="concept names")
     ap.add_argument("--smoke", action="store_true", help="no result file")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--out", type=Path, default=None, help=f"result file (default {RESULTS})")
     args = ap.parse_args(argv)
-    report = run(args.draws, args.seed, args.only, args.json)
+    if args.smoke:
+        args.draws = args.draws or 1
+        args.only = args.only or ["CabinetDrawer", "SunkenDoor", "RoundKnob"]
+    report = run(args.draws or 8, args.seed, args.only, args.json)
     if args.json:
         print(json.dumps(report, indent=1))
     else:
@@ -120,9 +124,10 @@ def main(argv: list[str] | None = None) -> int:
             f"{report['manifold'] * 100:.1f}% ({report['only_manifold']} only by the manifold); "
             f"median {report['median_ms_per_instance']:.1f} ms per instance (manifold, all grasps)"
         )
-    if not args.smoke:
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        RESULTS.write_text(json.dumps(report, indent=1) + "\n")
+    out = args.out or (None if args.smoke else RESULTS)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(report, indent=1) + "\n")
     return 0
 
 

@@ -82,6 +82,11 @@ class ParamSpec:
                 f"{self.name} must be {'a number' if self.size == 1 else f'{self.size} numbers'}"
                 f" ({self.type}), not {show_value(value)}"
             ) from None
+        if arr.ndim > 1:  # [[0.1]] is a matrix, not a number or a vector
+            raise ParameterError(
+                f"{self.name} must be {'a number' if self.size == 1 else f'{self.size} numbers'}"
+                f" ({self.type}), not a nested list: {show_value(value)}"
+            )
         arr = arr.reshape(-1)
         if arr.size != self.size:
             raise ParameterError(

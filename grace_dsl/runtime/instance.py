@@ -415,7 +415,7 @@ class Instance:
         if joint is None:
             raise ParameterError(f"action {action} moves no joint; it has a fixed direction")
         steps = as_count("steps", steps, 2, MAX_STEPS)
-        held = check_pose(grasp, "grasp")
+        held = _grasp_pose(grasp)
         i = self.concept.joint_index[joint]
         lo, hi = self._limits[0][i], self._limits[1][i]
         to = as_number(f"joint {joint}", to)
@@ -494,9 +494,16 @@ def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -
         q[i] = v
 
 
+def _grasp_pose(grasp: Any) -> np.ndarray:
+    """A gripper pose given to ``force`` or ``follow`` (a rigid 4x4 pose, not copied)."""
+    if grasp is None:  # check_pose reads None as "no pose given": the identity
+        raise ParameterError("grasp must be the gripper's 4x4 world pose (e.g. inst.grasp(name))")
+    return check_pose(grasp, "grasp")
+
+
 def _grasp_point(grasp: Any) -> np.ndarray:
-    """The position of a gripper pose given to ``force`` (a rigid 4x4 pose, not copied)."""
-    return check_pose(grasp, "grasp")[:3, 3]
+    """The position of a gripper pose given to ``force``."""
+    return _grasp_pose(grasp)[:3, 3]
 
 
 def _same_concept(a: Concept, b: Concept) -> bool:

@@ -18,8 +18,11 @@ SCRIPTS = sorted(p.name for p in (ROOT / "bench").glob("bench_*.py"))
 
 def test_every_script_is_smoke_tested() -> None:
     assert SCRIPTS == [
+        "bench_adversarial.py",
         "bench_eval.py",
         "bench_geometry.py",
+        "bench_grasp_ik.py",
+        "bench_ik.py",
         "bench_render.py",
         "bench_runtime.py",
         "bench_verify.py",

@@ -319,3 +319,15 @@ def test_the_limits_are_the_documented_ones() -> None:
     for limit in (MAX_GRASPS, MAX_SAMPLES, MAX_STEPS, MAX_RANK_SAMPLES, MAX_RESOLUTION):
         assert f"{limit:,}" in section, limit
     assert MAX_COORDINATE == 1e6 and "within 1e6 m" in section
+
+
+def test_a_nested_list_is_no_number_and_no_grasp_is_no_pose(lib) -> None:  # type: ignore[no-untyped-def]
+    """Found by bench/bench_adversarial.py: [[0.1]] was read as 0.1; grasp=None as the identity."""
+    fridge = lib["Refrigerator"]
+    with pytest.raises(eac.ParameterError, match="nested list"):
+        fridge.instantiate(handle_y=[[0.1]])
+    inst = fridge.instantiate()
+    with pytest.raises(eac.ParameterError, match="4x4 world pose"):
+        inst.force("open", grasp=None)
+    with pytest.raises(eac.ParameterError, match="4x4 world pose"):
+        inst.follow("open", grasp=None, to=0.5)
