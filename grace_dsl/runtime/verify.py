@@ -51,10 +51,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.types import format_si
-from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
+from grace_dsl.runtime.errors import (
+    EvaluationError,
+    GraceError,
+    ParameterError,
+    RequirementError,
+)
 from grace_dsl.runtime.gripper import Gripper, finger_points
-from grace_dsl.runtime.instance import TWIST_VERBS, _spread
+from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
+from grace_dsl.runtime.specs import ActionSpec
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -427,7 +433,7 @@ class _Run:
     def _check_state(self, state: Instance) -> None:
         geo = _Geometry(state)
         self.evaluated["shape"] += 1
-        samples = {g: self._finite_samples(state, g) for g in self.concept.grasps}
+        samples = {g: self._grasp_samples(state, g) for g in self.concept.grasps}
         for ss in samples.values():
             if ss:
                 self._check_grasp(state, geo, ss)
@@ -435,6 +441,18 @@ class _Run:
             for g in _action_grasps(self.concept, entry):
                 for s in samples[g]:
                     self._check_action(state, action, entry, s)
+
+    def _grasp_samples(self, state: Instance, grasp: str) -> list[_Sample]:
+        """The grasp's finite samples; a grasp the runtime refuses as not finite fails
+        ``finite`` under its own name and source line."""
+        try:
+            return self._finite_samples(state, grasp)
+        except EvaluationError as exc:
+            where = self.concept.grasps[grasp].where
+            member = f"{grasp} ({where})" if where else grasp
+            message = f"grasp {member} is not finite with {parameter_text(state)}: {exc}"
+            self._broken(state, "finite", member, message)
+            return []
 
     def refused(self, values: Mapping[str, Any], pose: np.ndarray, exc: ParameterError) -> None:
         """A draw inside every range that ``instantiate`` refused (not for a ``require``): a
@@ -488,11 +506,11 @@ class _Run:
         for name, (lo, hi) in inst.joint_limits().items():
             lo, hi = (-math.pi, math.pi) if not math.isfinite(hi - lo) else (lo, hi)
             joints[name] = float(self.rng.uniform(lo, hi))
-        return self.concept.instantiate(pose=inst.pose, joints=joints, **inst.params)
+        return inst.with_joints(joints)  # the parameters were checked once, per draw
 
     def _samples(self, inst: Instance, grasp: str) -> list[_Sample]:
         ranges = inst.grasp_range(grasp)
-        values = _spread(list(ranges.values()), FREE_SAMPLES)
+        values = spread(list(ranges.values()), FREE_SAMPLES)
         poses = inst.grasps(grasp, FREE_SAMPLES)
         return [
             _Sample(grasp, pose, dict(zip(ranges, map(float, row))))
@@ -625,14 +643,14 @@ class _Run:
 
     # -- actions
     def _check_action(
-        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample
+        self, inst: Instance, action: str, entry: ActionSpec, s: _Sample
     ) -> None:
         member = f"{action}/{s.grasp}"
         if entry["joint"] is not None:
             self._check_power(inst, action, entry, s, member)
             self._check_follow(inst, action, entry, s, member)
             return
-        twist = entry["verb"] in TWIST_VERBS  # a fixed axis to turn about, not a force
+        twist = entry.turns  # a fixed axis to turn about, not a force
         f = inst.twist(action) if twist else inst.force(action, grasp=s.pose)
         err = abs(float(np.linalg.norm(f)) - 1.0) if np.all(np.isfinite(f)) else math.inf
         what = "twist axis" if twist else "force"
@@ -640,13 +658,13 @@ class _Run:
         self._record(inst, member, s, _at_most("unit_force", err, UNIT, "", message))
 
     def _check_power(
-        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample, member: str
+        self, inst: Instance, action: str, entry: ActionSpec, s: _Sample, member: str
     ) -> None:
         joint = entry["joint"]
         try:
             f = inst.force(action, grasp=s.pose)
         except ParameterError as exc:
-            if entry["verb"] in TWIST_VERBS:  # on the axis: the hand turns (inst.twist)
+            if entry.turns:  # on the axis: the hand turns (inst.twist)
                 return
             self._record(inst, member, s, _Measure("power", False, 1.0, 0.0, 0.0, "", str(exc)))
             return
@@ -668,7 +686,7 @@ class _Run:
         self._record(inst, member, s, _Measure("power", cos > 0.0, -cos, cos, 0.0, "", message))
 
     def _check_follow(
-        self, inst: Instance, action: str, entry: Mapping[str, Any], s: _Sample, member: str
+        self, inst: Instance, action: str, entry: ActionSpec, s: _Sample, member: str
     ) -> None:
         joint = entry["joint"]
         lo, hi = inst.joint_limits()[joint]
@@ -693,7 +711,7 @@ class _Run:
         self._record(inst, member, s, _at_most("follow", drift, ATTACHED, "", message))
 
 
-def _action_grasps(concept: Concept, entry: Mapping[str, Any]) -> list[str]:
+def _action_grasps(concept: Concept, entry: ActionSpec) -> list[str]:
     """The grasps an action is performed with: its ``using``, else those on the link it moves
     (every grasp for an action along a fixed direction)."""
     if entry["using"]:
