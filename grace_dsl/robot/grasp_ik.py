@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from grace_dsl.robot.collision import CollisionScene
-from grace_dsl.robot.ik import IKOptions, IKResult, descend, thread_qp
+from grace_dsl.robot.ik import IKOptions, IKResult, descend, pose_errors, thread_qp
 from grace_dsl.robot.model import Robot, rigid_pose
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.symmetry import minimal_spin
@@ -188,9 +188,7 @@ def _result(
     pose = robot.fk(q)
     world_goal = problem.world_pose(g)
     goal = problem.base_inv @ world_goal
-    err_pos = float(np.linalg.norm(pose[:3, 3] - goal[:3, 3]))
-    cos = (np.trace(goal[:3, :3].T @ pose[:3, :3]) - 1.0) / 2.0
-    err_rot = float(math.acos(min(1.0, max(-1.0, cos))))
+    err_pos, err_rot = pose_errors(pose, goal)
     success = reason == "converged" and err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
     if reason == "converged" and not success:
         reason = "unreachable"

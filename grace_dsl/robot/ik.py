@@ -172,6 +172,15 @@ def thread_qp(robot: Robot, n: int) -> BoxQP:
     return cache[n]
 
 
+def pose_errors(pose: FloatArray, goal: FloatArray) -> tuple[float, float]:
+    """The distance (metres) and the rotation angle (radians) between two 4x4 poses."""
+    cos = (np.trace(goal[:3, :3].T @ pose[:3, :3]) - 1.0) / 2.0
+    return (
+        float(np.linalg.norm(pose[:3, 3] - goal[:3, 3])),
+        float(math.acos(min(1.0, max(-1.0, cos)))),
+    )
+
+
 def _stalled(history: list[float], window: int = 8) -> bool:
     """No 5% progress over the last ``window`` steps: the attempt is stuck in a local minimum."""
     if len(history) <= window:
@@ -190,9 +199,7 @@ def _result(
     opts: IKOptions,
 ) -> IKResult:
     pose = robot.fk(q)  # measured, not carried over from the iteration
-    err_pos = float(np.linalg.norm(pose[:3, 3] - goal.translation))
-    cos = (np.trace(goal.rotation.T @ pose[:3, :3]) - 1.0) / 2.0
-    err_rot = float(math.acos(min(1.0, max(-1.0, cos))))
+    err_pos, err_rot = pose_errors(pose, goal.homogeneous)
     success = err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
     if not success and reason == "converged":
         reason = "unreachable"
