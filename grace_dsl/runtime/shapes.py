@@ -33,6 +33,7 @@ import trimesh
 from grace_dsl.compiler.types import format_si
 from grace_dsl.geometry import GeometryError, primitive_mesh, primitive_sdf, validate
 from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.kinematics import Kinematics
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -115,6 +116,7 @@ class ShapeTree:
             s["name"]: s for s in inst.concept.entry["shapes"]
         }
         self.q0 = np.zeros_like(inst.q)
+        self._rest = Kinematics.of(inst).in_concept_frame()
         self._links: dict[str, np.ndarray] = {}
         self._evaluated: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._params: dict[str, dict[str, Any]] = {}
@@ -134,9 +136,8 @@ class ShapeTree:
         ]
 
     def link_pose(self, link: str) -> np.ndarray:
-        if link not in self._links:
-            fn = self.inst.concept.function("link", link)
-            self._links[link] = np.asarray(fn(self.inst.p, self.q0), float)
+        if link not in self._links:  # the concept frame at the closed joints
+            self._links[link] = self._rest.link_pose(link, self.q0)
         return self._links[link]
 
     def evaluate(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -252,12 +253,10 @@ def _apply(m: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 def _motions(tree: ShapeTree) -> dict[str, np.ndarray]:
     """World pose change of each link from q = 0 to the instance's joints: world <- q0 frame."""
-    inst = tree.inst
+    kin = Kinematics.of(tree.inst)
     return {
-        link: inst.pose
-        @ np.asarray(inst.concept.function("link", link)(inst.p, inst.q))
-        @ np.linalg.inv(tree.link_pose(link))
-        for link in inst.concept.links
+        link: kin.link_pose(link) @ np.linalg.inv(tree.link_pose(link))
+        for link in tree.inst.concept.links
     }
 
 

@@ -58,6 +58,7 @@ from grace_dsl.runtime.errors import (
     RequirementError,
 )
 from grace_dsl.runtime.gripper import Gripper, finger_points
+from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec
@@ -698,12 +699,11 @@ class _Run:
         opening = entry["sense"] == "opening"
         to = float(self.rng.uniform(q0, hi) if opening else self.rng.uniform(lo, q0))
         path = inst.follow(action, grasp=s.pose, to=to, steps=FOLLOW_STEPS)
-        link = self.concept.function("link", self.concept.grasps[s.grasp]["link"])
+        kin, link = Kinematics.of(inst), self.concept.grasps[s.grasp].link
         qs = np.tile(inst.q, (FOLLOW_STEPS, 1))
         qs[:, i] = np.linspace(q0, to, FOLLOW_STEPS)
-        poses = np.asarray(link.batch(inst.p, qs), float).reshape(-1, 4, 4)
-        attached = np.linalg.solve(inst.pose @ np.asarray(link(inst.p, inst.q), float), s.pose)
-        want = np.einsum("ij,njk,kl->nil", inst.pose, poses, attached)
+        attached = np.linalg.solve(kin.link_pose(link), s.pose)
+        want = kin.link_pose(link, qs) @ attached
         drift = float(np.abs(path - want).max())
         message = (
             f"the followed grasp drifts {drift:.2e} from its link as {joint} moves to {to:.4g}"
@@ -723,16 +723,11 @@ def _action_grasps(concept: Concept, entry: ActionSpec) -> list[str]:
 
 
 def _grasp_velocity(inst: Instance, link: str, joint: str, grasp: np.ndarray) -> np.ndarray:
-    """World velocity of the grasp's origin, carried by ``link``, per unit of ``joint``'s value
-    (central difference of the link pose; the link functions are smooth past the limits)."""
-    fn = inst.concept.function("link", link)
-    i = inst.concept.moving_joints.index(joint)
-    h = 1e-6
-    qs = np.tile(inst.q, (3, 1))
-    qs[:, i] += (-h, 0.0, h)
-    behind, at, ahead = np.asarray(fn.batch(inst.p, qs), float).reshape(3, 4, 4)
-    point = np.linalg.solve(inst.pose @ at, grasp[:, 3])
-    return (inst.pose @ ((ahead - behind) @ point))[:3] / (2 * h)
+    """World velocity of the grasp's origin, carried by ``link``, per unit of ``joint``'s value:
+    the link's exact twist Jacobian column (v + w x r, r from the link's origin to the grasp)."""
+    pose, jac = Kinematics.of(inst).link_pose_jacobian(link)
+    column = jac[:, inst.concept.joint_index[joint]]
+    return column[:3] + np.cross(column[3:], grasp[:3, 3] - pose[:3, 3])
 
 
 def _material_width(
