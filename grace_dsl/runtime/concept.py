@@ -17,6 +17,7 @@ from grace_dsl.compiler.types import format_si
 from grace_dsl.lang.diagnostics import closest
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
 from grace_dsl.runtime.inputs import as_array, show_value
+from grace_dsl.tolerances import RANGE_SLACK
 
 Evaluate = Callable[..., Any]
 
@@ -104,7 +105,7 @@ class ParamSpec:
             return
         lo, hi = np.atleast_1d(self.lo), np.atleast_1d(self.hi)
         # written so that a NaN bound fails the check instead of disabling it
-        if not (np.all(arr >= lo - 1e-12) and np.all(arr <= hi + 1e-12)):
+        if not (np.all(arr >= lo - RANGE_SLACK) and np.all(arr <= hi + RANGE_SLACK)):
             raise ParameterError(
                 f"{self.name} = {format_si(arr, self.dim)} is outside its range "
                 f"[{format_si(lo, self.dim)}, {format_si(hi, self.dim)}] (values are in SI units: "

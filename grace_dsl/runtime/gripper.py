@@ -16,6 +16,7 @@ import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.inputs import as_array, as_number
+from grace_dsl.tolerances import DEGENERATE, RANGE_SLACK
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ class Gripper:
                 )
         if self.approach is not None:
             a = as_array(f"gripper {self.name}: approach", self.approach)
-            if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9:
+            if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < DEGENERATE:
                 raise ParameterError(
                     f"gripper {self.name}: approach must be a non-zero world direction (x, y, z) "
                     f"or None, got {self.approach!r}"
@@ -89,7 +90,7 @@ class Gripper:
         """The two pads in the gripper frame at opening ``width`` (inner faces ``width`` apart):
         the one on -y first. Width 0 is the closed hand, pads touching."""
         width = as_number("width", width)
-        if not math.isfinite(width) or not 0.0 <= width <= self.max_width + 1e-12:
+        if not math.isfinite(width) or not 0.0 <= width <= self.max_width + RANGE_SLACK:
             raise ParameterError(
                 f"{self.name} opens 0-{self.max_width * 1e3:g} mm; cannot open to "
                 f"{width * 1e3:g} mm"

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.tolerances import EXACT, ROTATION
 
 # Documented limits (docs/api.md): counts beyond these would take minutes or gigabytes.
 MAX_GRASPS = 100_000  # inst.grasps(name, n)
@@ -160,7 +161,7 @@ def rigid_problem(m: np.ndarray) -> str | None:
     """Why a finite 4x4 matrix is not a rigid transform (None when it is): the one test behind
     every pose the project accepts, from the API or the command line."""
     r = m[:3, :3]
-    if np.abs(r.T @ r - _EYE3).max() > 1e-6 or np.abs(m[3] - _LAST_ROW).max() > 1e-12:
+    if np.abs(r.T @ r - _EYE3).max() > ROTATION or np.abs(m[3] - _LAST_ROW).max() > EXACT:
         return "its rotation must be orthonormal with determinant +1 and its last row 0 0 0 1"
     if np.linalg.det(r) < 0:
         return "its rotation is a mirror image (determinant -1; a rotation has determinant +1)"
@@ -168,7 +169,7 @@ def rigid_problem(m: np.ndarray) -> str | None:
 
 
 def _is_rotation(r: np.ndarray) -> bool:
-    return bool(np.abs(r.T @ r - _EYE3).max() < 1e-6 and np.linalg.det(r) > 0)
+    return bool(np.abs(r.T @ r - _EYE3).max() < ROTATION and np.linalg.det(r) > 0)
 
 
 def _far(what: str) -> str:
@@ -192,7 +193,7 @@ def _plainly_rigid(rows: list[list[float]]) -> bool:
         )
     ):
         return False
-    tol = 1e-6  # columns orthonormal: R^T R = I, and no mirror: det R = +1
+    tol = ROTATION  # columns orthonormal: R^T R = I, and no mirror: det R = +1
     return (
         abs(a * a + d * d + g * g - 1.0) <= tol
         and abs(b * b + e * e + h * h - 1.0) <= tol

@@ -40,6 +40,7 @@ from grace_dsl.runtime.manipulation import Option, rank
 from grace_dsl.runtime.sampling import spread, spread_box, unit_points
 from grace_dsl.runtime.specs import TWIST_VERBS, ActionSpec, GraspSpec
 from grace_dsl.runtime.symmetry import spin_to_reference
+from grace_dsl.tolerances import RANGE_SLACK
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
@@ -50,7 +51,7 @@ _spread = spread
 _pose = as_pose
 
 _ORIGIN = np.zeros(3)  # any point: an explicit direction is the same everywhere
-_TOL = 1e-12  # slack on range bounds
+_TOL = RANGE_SLACK  # slack on range bounds
 _AXIS = 1e-5  # metres: within this of a joint's axis the compiled force is NaN (1e-6) on purpose
 _Limits = tuple[tuple[float, ...], tuple[float, ...]]
 

@@ -26,6 +26,7 @@ from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
 from grace_dsl.runtime.symmetry import spin_about
+from grace_dsl.tolerances import DEGENERATE, RANGE_SLACK
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.gripper import Gripper
@@ -97,7 +98,7 @@ def _judge(
     tilt = _tilt(poses, gripper)
     why = [_contact(inst, action, mode, p) for p in poses]
     force_ok = np.array([w is None for w in why])
-    within = tilt <= gripper.approach_tolerance + 1e-9
+    within = tilt <= gripper.approach_tolerance + DEGENERATE
     usable = force_ok & within
     if not force_ok.any():
         reasons.append(f"a {mode} contact cannot apply the force of {action.name} here: {why[0]}")
@@ -125,7 +126,7 @@ def _hand_reasons(inst: Instance, name: str, mode: str, gripper: Gripper) -> lis
     if mode == "pinch" and not gripper.can_close:
         reasons.append(f"{name} pinches: it needs fingers that close")
     width = inst.grasp_width(name)
-    if mode == "pinch" and width is not None and width > gripper.max_width + 1e-12:
+    if mode == "pinch" and width is not None and width > gripper.max_width + RANGE_SLACK:
         reasons.append(
             f"{name} needs a {width * 1e3:.0f} mm opening; {gripper.name} opens "
             f"{gripper.max_width * 1e3:.0f} mm"

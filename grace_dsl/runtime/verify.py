@@ -62,6 +62,7 @@ from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec
+from grace_dsl.tolerances import RANGE_SLACK
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -568,7 +569,7 @@ class _Run:
         top = self.gripper.max_width
         fitting = []
         for s, width in zip(samples, widths):
-            fits = 0.0 < width <= top + 1e-12
+            fits = 0.0 < width <= top + RANGE_SLACK
             message = (
                 f"the {what} width is {width * 1e3:.2f} mm; {self.gripper.name} pinches widths "
                 f"in (0, {top * 1e3:g}] mm"
@@ -643,9 +644,7 @@ class _Run:
         return out
 
     # -- actions
-    def _check_action(
-        self, inst: Instance, action: str, entry: ActionSpec, s: _Sample
-    ) -> None:
+    def _check_action(self, inst: Instance, action: str, entry: ActionSpec, s: _Sample) -> None:
         member = f"{action}/{s.grasp}"
         if entry["joint"] is not None:
             self._check_power(inst, action, entry, s, member)
