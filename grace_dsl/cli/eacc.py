@@ -375,7 +375,7 @@ def _defined_here(name: str) -> str:
 
 
 def cmd_prompt(args: argparse.Namespace) -> int:
-    from grace_dsl.runtime.catalog import build_catalog, render_json, render_markdown
+    from grace_dsl.agent.catalog import build_catalog, render_json, render_markdown
     from grace_dsl.runtime.errors import UnknownNameError
 
     lib = _library(args.paths, args.search_path)

@@ -12,10 +12,7 @@ import pytest
 import sympy as sp
 
 import grace_dsl as eac
-from grace_dsl.compiler.functions import sympy_model
-from grace_dsl.compiler.lower import symbol_names
-from grace_dsl.compiler.manifest import GRASP_POINT, force_vector
-from grace_dsl.runtime.catalog import (
+from grace_dsl.agent.catalog import (
     SCHEMA,
     _matrix_rows,
     _readable,
@@ -23,6 +20,9 @@ from grace_dsl.runtime.catalog import (
     render_json,
     render_markdown,
 )
+from grace_dsl.compiler.functions import sympy_model
+from grace_dsl.compiler.lower import symbol_names
+from grace_dsl.compiler.manifest import GRASP_POINT, force_vector
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 DOC = ROOT / "docs" / "prompt_catalog.md"
