@@ -58,7 +58,8 @@ class IKOptions:
 
     tol_pos: float = POSITION_TOLERANCE
     tol_rot: float = ROTATION_TOLERANCE
-    max_iterations: int = 60  # per attempt
+    max_iterations: int = 30  # per attempt
+    stall_window: int = 5  # steps without 5% progress that end an attempt
     max_restarts: int = 40
     time_limit: float = 0.5  # seconds, all attempts together
     trust_region: float = 0.4  # radians per joint per step
@@ -159,7 +160,7 @@ def descend(
         x = np.clip(x + step, lo, hi)
         err, j_err, score = problem.linearize(x)
         history.append(score)
-        if score <= 0.1 or _stalled(history):
+        if score <= 0.1 or _stalled(history, opts.stall_window):
             return x, it, score
     return x, opts.max_iterations, score
 
@@ -181,7 +182,7 @@ def pose_errors(pose: FloatArray, goal: FloatArray) -> tuple[float, float]:
     )
 
 
-def _stalled(history: list[float], window: int = 8) -> bool:
+def _stalled(history: list[float], window: int) -> bool:
     """No 5% progress over the last ``window`` steps: the attempt is stuck in a local minimum."""
     if len(history) <= window:
         return False
