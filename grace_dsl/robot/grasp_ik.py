@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from grace_dsl.robot.collision import CollisionScene
-from grace_dsl.robot.ik import IKOptions, IKResult, descend, pose_errors, thread_qp
+from grace_dsl.robot.ik import IKOptions, IKResult, Search, measure, search, thread_qp
 from grace_dsl.robot.model import Robot, rigid_pose
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.symmetry import minimal_spin
@@ -153,47 +153,25 @@ def solve_grasp_ik(
     q_start = robot.home if q0 is None else robot.check_q(q0)
     x = problem.start(q_start)
     rng, start = np.random.default_rng(seed), time.perf_counter()
-    qp = thread_qp(robot, len(x))
-    best: tuple[float, FloatArray] = (math.inf, x)
-    iterations, collided = 0, False
-    for attempt in range(opts.max_restarts + 1):
-        x, used, score = descend(problem, x, opts, qp)
-        iterations += used
-        if score <= 1.0 and scene is not None and scene.collides(x[: robot.nq]):
-            collided, score = True, 1.0 + score  # within tolerance but not usable
-        if score < best[0]:
-            best = (score, x.copy())
-        if score <= 1.0:
-            return _result(problem, best[1], iterations, attempt, start, "converged")
-        if time.perf_counter() - start > opts.time_limit:
-            reason = "collision" if collided else "time_limit"
-            return _result(problem, best[1], iterations, attempt, start, reason)
-        x = problem.random(rng)
-    reason = "collision" if collided else "unreachable"
-    return _result(problem, best[1], iterations, opts.max_restarts, start, reason)
+    clear = None if scene is None else (lambda x: not scene.collides(x[: robot.nq]))
+    found = search(problem, x, opts, thread_qp(robot, len(x)), lambda: problem.random(rng), clear)
+    return _result(problem, found, start)
 
 
-def _result(
-    problem: _GraspProblem,
-    x: FloatArray,
-    iterations: int,
-    restarts: int,
-    start: float,
-    reason: str,
-) -> GraspIKResult:
+def _result(problem: _GraspProblem, found: Search, start: float) -> GraspIKResult:
     """Errors measured afresh: the robot's FK against the grasp pose from ``grasp:NAME`` (the
     pose function, not the Jacobian kernel the iteration used)."""
-    robot, opts = problem.robot, problem.opts
-    q, g = x[: problem.n].copy(), x[problem.n :].copy()
-    pose = robot.fk(q)
+    q, g = found.x[: problem.n].copy(), found.x[problem.n :].copy()
+    q.setflags(write=False)
     world_goal = problem.world_pose(g)
-    goal = problem.base_inv @ world_goal
-    err_pos, err_rot = pose_errors(pose, goal)
-    success = reason == "converged" and err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
+    world_goal.setflags(write=False)
+    pose, err_pos, err_rot, within = measure(
+        problem.robot, q, problem.base_inv @ world_goal, problem.opts
+    )
+    reason = found.reason
+    success = reason == "converged" and within
     if reason == "converged" and not success:
         reason = "unreachable"
-    for arr in (q, pose, world_goal):
-        arr.setflags(write=False)
     names = problem.kin.free_parameters(problem.grasp)
     return GraspIKResult(
         success,
@@ -201,8 +179,8 @@ def _result(
         pose,
         err_pos,
         err_rot,
-        iterations,
-        restarts,
+        found.iterations,
+        found.restarts,
         time.perf_counter() - start,
         reason,
         problem.grasp,

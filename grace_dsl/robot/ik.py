@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -86,20 +87,50 @@ def solve_ik(
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     q = robot.home.copy() if q0 is None else robot.check_q(q0).copy()
-    best: tuple[float, FloatArray] = (math.inf, q.copy())
-    iterations = 0
-    problem, qp = _PoseProblem(robot, goal, opts), thread_qp(robot, robot.nq)
+    problem = _PoseProblem(robot, goal, opts)
+    found = search(problem, q, opts, thread_qp(robot, robot.nq), lambda: robot.random_q(rng))
+    return _result(robot, goal, found, start, opts)
+
+
+@dataclass(frozen=True)
+class Search:
+    """The best ``x`` of a restarted descent, its effort and why it stopped: ``converged``,
+    ``time_limit``, ``unreachable`` or (with ``usable``) ``collision``."""
+
+    x: FloatArray
+    iterations: int
+    restarts: int
+    reason: str
+
+
+def search(
+    problem: Linearized,
+    x: FloatArray,
+    opts: IKOptions,
+    qp: BoxQP,
+    restart: Callable[[], FloatArray],
+    usable: Callable[[FloatArray], bool] | None = None,
+) -> Search:
+    """:func:`descend` from ``x``, then from ``restart()`` after every attempt that stalls, until
+    an attempt ends within tolerance at a ``usable`` point, the time limit or the restart
+    budget. A point within tolerance that is not usable counts as just outside it."""
+    start = time.perf_counter()
+    best: tuple[float, FloatArray] = (math.inf, x)
+    iterations, rejected = 0, False
     for attempt in range(opts.max_restarts + 1):
-        q, used, score = descend(problem, q, opts, qp)
+        x, used, score = descend(problem, x, opts, qp)
         iterations += used
+        if score <= 1.0 and usable is not None and not usable(x):
+            rejected, score = True, 1.0 + score
         if score < best[0]:
-            best = (score, q.copy())
+            best = (score, x.copy())
         if score <= 1.0:
-            return _result(robot, goal, best[1], iterations, attempt, start, "converged", opts)
+            return Search(best[1], iterations, attempt, "converged")
         if time.perf_counter() - start > opts.time_limit:
-            return _result(robot, goal, best[1], iterations, attempt, start, "time_limit", opts)
-        q = robot.random_q(rng)
-    return _result(robot, goal, best[1], iterations, opts.max_restarts, start, "unreachable", opts)
+            return Search(best[1], iterations, attempt, "collision" if rejected else "time_limit")
+        x = restart()
+    reason = "collision" if rejected else "unreachable"
+    return Search(best[1], iterations, opts.max_restarts, reason)
 
 
 class Linearized(Protocol):
@@ -189,32 +220,30 @@ def _stalled(history: list[float], window: int) -> bool:
     return history[-1] > 0.95 * history[-1 - window]
 
 
-def _result(
-    robot: Robot,
-    goal: pin.SE3,
-    q: FloatArray,
-    iterations: int,
-    restarts: int,
-    start: float,
-    reason: str,
-    opts: IKOptions,
-) -> IKResult:
+def measure(
+    robot: Robot, q: FloatArray, goal: FloatArray, opts: IKOptions
+) -> tuple[FloatArray, float, float, bool]:
+    """The gripper pose at ``q`` by a fresh forward kinematics (read-only), its distance and
+    angle to ``goal``, and whether both are within the tolerances."""
     pose = robot.fk(q)  # measured, not carried over from the iteration
-    err_pos, err_rot = pose_errors(pose, goal.homogeneous)
-    success = err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
-    if not success and reason == "converged":
-        reason = "unreachable"
-    q = np.array(q)
-    q.setflags(write=False)
+    err_pos, err_rot = pose_errors(pose, goal)
     pose.setflags(write=False)
+    return pose, err_pos, err_rot, err_pos <= opts.tol_pos and err_rot <= opts.tol_rot
+
+
+def _result(robot: Robot, goal: pin.SE3, found: Search, start: float, opts: IKOptions) -> IKResult:
+    q = np.array(found.x)
+    q.setflags(write=False)
+    pose, err_pos, err_rot, success = measure(robot, q, goal.homogeneous, opts)
+    reason = "converged" if success else found.reason
     return IKResult(
         success,
         q,
         pose,
         err_pos,
         err_rot,
-        iterations,
-        restarts,
+        found.iterations,
+        found.restarts,
         time.perf_counter() - start,
-        reason if not success else "converged",
+        "unreachable" if reason == "converged" and not success else reason,
     )
