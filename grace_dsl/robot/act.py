@@ -163,7 +163,8 @@ def _mid_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
 def _action_path(
     inst: Any, action: str, grasp: FloatArray, to: float | None, steps: int
 ) -> tuple[FloatArray, float | None]:
-    joint, opening = _joint_and_sense(inst, action)
+    spec = inst.concept.actions[action]
+    joint = spec.joint
     if joint is None:
         force = inst.force(action, grasp=grasp)
         shifts = np.linspace(0.0, PUSH_DISTANCE, steps)[:, None] * force
@@ -171,18 +172,11 @@ def _action_path(
         path[:, :3, 3] += shifts
         return path, None
     lo, hi = inst.joint_limits()[joint]
-    target = (hi if opening else lo) if to is None else float(to)
+    target = (hi if spec.opening else lo) if to is None else float(to)
     try:
         return inst.follow(action, grasp=grasp, to=target, steps=steps), target
     except GraceError as exc:
         raise ActionPlanningError(f"{action} cannot move {joint} to {target:g}: {exc}") from None
-
-
-def _joint_and_sense(inst: Any, action: str) -> tuple[str | None, bool]:
-    spec = inst.concept.actions[action]
-    if isinstance(spec, dict):
-        return spec["joint"], spec["sense"] == "opening"
-    return spec.joint, bool(getattr(spec, "opening", getattr(spec, "sense", "") == "opening"))
 
 
 def _assemble(

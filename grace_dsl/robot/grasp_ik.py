@@ -57,7 +57,7 @@ class _GraspProblem:
     def __post_init__(self) -> None:
         lo, hi, self.default = self.kin.grasp_range(self.grasp)
         self.m = len(lo)
-        self.symmetric = _is_symmetric(self.kin, self.grasp)
+        self.symmetric = self.kin.concept.grasps[self.grasp].symmetric
         if self.symmetric:  # one more unknown: the spin about the symmetry axis
             lo, hi = np.append(lo, -math.pi), np.append(hi, math.pi)
         self.lower = np.concatenate([self.robot.lower, lo])
@@ -188,9 +188,3 @@ def _result(problem: _GraspProblem, found: Search, start: float) -> GraspIKResul
         world_goal,
         float(g[-1]) if problem.symmetric else 0.0,
     )
-
-
-def _is_symmetric(kin: Kinematics, grasp: str) -> bool:
-    spec = kin.concept.grasps[grasp]
-    value = spec.get("symmetric") if isinstance(spec, Mapping) else getattr(spec, "symmetric", None)
-    return bool(value)
