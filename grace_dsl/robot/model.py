@@ -22,6 +22,7 @@ import pinocchio as pin
 
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.gripper import Gripper
+from grace_dsl.runtime.inputs import check_pose
 
 FloatArray = np.ndarray
 UR5_HOME = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
@@ -253,16 +254,12 @@ def _home(model: pin.Model, home: Sequence[float] | None) -> FloatArray:
 
 
 def rigid_pose(m: Any, what: str) -> FloatArray:
-    try:
-        arr = np.asarray(m, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a 4x4 matrix, not {_short(m)}") from None
-    if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{what} must be a finite 4x4 matrix")
-    r = arr[:3, :3]
-    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
-        raise ParameterError(f"{what} must be a rigid transform (a rotation and a translation)")
-    return arr
+    """``m`` as a rigid 4x4 pose, checked like every pose of the runtime (``check_pose``: finite,
+    orthonormal, no mirror, last row 0 0 0 1, numbers only); unlike an instance's pose it is
+    required, so None is refused rather than read as the identity."""
+    if m is None or isinstance(m, (str, bytes)):
+        raise ParameterError(f"{what} must be a 4x4 matrix, not {_short(m)}")
+    return check_pose(m, what)
 
 
 def _read_only(a: Any) -> FloatArray:
