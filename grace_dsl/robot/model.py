@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.gripper import Gripper
-from grace_dsl.runtime.inputs import check_pose
+from grace_dsl.runtime.inputs import as_array, check_pose
 
 FloatArray = np.ndarray
 UR5_HOME = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
@@ -160,9 +160,9 @@ class Robot:
 
     def check_q(self, q: Any, *, within_limits: bool = True) -> FloatArray:
         """``q`` as a float vector of the right length, finite and (by default) within limits."""
-        try:
-            arr = np.array(q, dtype=float).reshape(-1)
-        except (TypeError, ValueError, OverflowError):
+        try:  # the runtime's reading of numbers: text, bytes and ragged lists are refused
+            arr = np.array(as_array("q", q)).reshape(-1)
+        except ParameterError:
             raise ParameterError(
                 f"{self.name}: q must be {self.nq} numbers, not {_short(q)}"
             ) from None
