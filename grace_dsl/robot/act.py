@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from grace_dsl.robot.choose import GraspChoice, choose_grasp
 from grace_dsl.robot.collision import CollisionScene, collision_scene
@@ -155,8 +156,6 @@ def _track(robot: Robot, poses: FloatArray, q: FloatArray, what: str) -> FloatAr
 
 def _mid_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
     """The rotation half-way from ``a`` to ``b`` (geodesic)."""
-    import pinocchio as pin
-
     return np.asarray(a @ pin.exp3(pin.log3(a.T @ b) / 2))
 
 
