@@ -107,7 +107,8 @@ def compile_block(block: Block, tmp: Path) -> tuple[list, str]:
         n = len(errors)
         text += f"\n{n} error{'s' if n != 1 else ''}"
     else:
-        text = f"ok: {len(prog.concepts)} concepts in {len(prog.files)} files"
+        concepts, files = len(prog.concepts), len(prog.files)
+        text = f"ok: {concepts} concept{'s' if concepts != 1 else ''} in {files} file{'s' if files != 1 else ''}"
     return errors, text
 
 

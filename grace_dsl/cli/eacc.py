@@ -15,6 +15,7 @@ from typing import Any
 from grace_dsl.cli.files import UserFileError, atomic_write, eac_files, read_source
 from grace_dsl.cli.output import (
     build_progress,
+    count,
     error,
     fmt_value,
     print_json,
@@ -161,7 +162,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     else:
         report_diagnostics(diags, prog.sources())
         if not has_errors(diags):
-            print_text(f"ok: {len(prog.concepts)} concepts in {len(prog.files)} files")
+            print_text(f"ok: {count(len(prog.concepts), 'concept')} in {count(len(prog.files), 'file')}")
     return 1 if has_errors(diags) else 0
 
 
@@ -276,7 +277,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         for c in concepts
     ]
     print_table(
-        f"{len(rows)} concepts",
+        count(len(rows), "concept"),
         ["concept", "kind", "file", "params", "grasps", "actions", "synopsis"],
         rows,
     )

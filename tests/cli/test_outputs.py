@@ -145,7 +145,7 @@ def test_check_skips_a_fifo_and_a_symlink_loop(tmp_path: Path) -> None:
         [*cmd, str(tmp_path)], capture_output=True, text=True, env=env, timeout=120
     )
     assert proc.returncode == 0, proc.stderr
-    assert "ok: 1 concepts in 1 files" in proc.stdout
+    assert "ok: 1 concept in 1 file" in proc.stdout
     assert "warning: skipped" in proc.stderr and "x.eac: a FIFO" in proc.stderr
     assert "loop.eac: a symlink loop" in proc.stderr and "Traceback" not in proc.stderr
     named = [str(tmp_path / "x.eac"), str(tmp_path / "loop.eac")]
