@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from grace_dsl.cli.output import count
 from grace_dsl.compiler.build import front_end
 from grace_dsl.lang.diagnostics import render_all
 
@@ -107,8 +108,8 @@ def compile_block(block: Block, tmp: Path) -> tuple[list, str]:
         n = len(errors)
         text += f"\n{n} error{'s' if n != 1 else ''}"
     else:
-        concepts, files = len(prog.concepts), len(prog.files)
-        text = f"ok: {concepts} concept{'s' if concepts != 1 else ''} in {files} file{'s' if files != 1 else ''}"
+        concepts = count(len(prog.concepts), "concept")
+        text = f"ok: {concepts} in {count(len(prog.files), 'file')}"
     return errors, text
 
 

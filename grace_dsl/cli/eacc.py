@@ -162,7 +162,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     else:
         report_diagnostics(diags, prog.sources())
         if not has_errors(diags):
-            print_text(f"ok: {count(len(prog.concepts), 'concept')} in {count(len(prog.files), 'file')}")
+            concepts, files = count(len(prog.concepts), "concept"), count(len(prog.files), "file")
+            print_text(f"ok: {concepts} in {files}")
     return 1 if has_errors(diags) else 0
 
 
