@@ -83,6 +83,9 @@ OBJECTS = [
     "FlushLever",
     "ShowerMixer",
     "MirrorCabinet",
+    "CoffeeMachine",
+    "TopLoadWasher",
+    "ShowerDoor",
 ]
 WRITTEN = PARTS + OBJECTS
 PANDA_MAX_WIDTH = 0.080

@@ -46,6 +46,12 @@ OPENS = {
     "FlushLever": {"flush": ("release", (0, -1, 0))},  # the arm's free end goes down
     "ShowerMixer": {"turn_on": ("turn_off", (1, 0, 0))},  # the lever hanging down swings right
     "MirrorCabinet": {"open": ("close", (0, 0, 1))},  # the free edge swings out of the wall
+    "CoffeeMachine": {
+        "open_lid": ("close_lid", (0, 1, 0)),
+        "pull_tray": ("push_tray_in", (0, 0, 1)),
+    },
+    "TopLoadWasher": {"open": ("close", (0, 1, 0))},
+    "ShowerDoor": {"open": ("close", (0, 0, 1))},  # the door swings out of the shower
 }
 KITCHEN = sorted(OPENS)
 DRAWS = 12
