@@ -68,6 +68,24 @@ OBJECTS = [
     "Toilet",
     "LeverFaucet",
     "KnobFaucet",
+    # kitchen.eac, bathroom.eac (tests/test_library_kitchen.py checks them further)
+    "StoveKnob",
+    "KitchenMixer",
+    "Toaster",
+    "Kettle",
+    "PedalBin",
+    "RangeHood",
+    "BreadBin",
+    "ChestFreezer",
+    "DishDrawer",
+    "ToasterOven",
+    "KeyRow",
+    "FlushLever",
+    "ShowerMixer",
+    "MirrorCabinet",
+    "CoffeeMachine",
+    "TopLoadWasher",
+    "ShowerDoor",
 ]
 WRITTEN = PARTS + OBJECTS
 PANDA_MAX_WIDTH = 0.080
