@@ -67,7 +67,9 @@ def test_the_whole_trajectory_is_free_and_within_limits(panda: Robot, door_plan)
     # allowance, and touch nothing else.
     arm = collision_scene(panda, door, ignore=FINGERS)
     link = door.concept.grasps[plan.choice.option.grasp].link
-    fingers = collision_scene(panda, door, touching=[(f, link) for f in FINGERS])
+    fingers = collision_scene(
+        panda, door, touching=[(f, link) for f in FINGERS], allowance=FINGER_ALLOWANCE
+    )
     strict = collision_scene(panda, door)
     approach_end = plan.phases[0][2]
     for k in range(len(plan.q) - 1):
