@@ -18,7 +18,8 @@ or leave the joint limits, the phase falls back to its polyline, stopping at the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -79,6 +80,7 @@ class ActionPlan:
     joint: str | None
     joint_values: FloatArray
     base: FloatArray
+    seconds: tuple[tuple[str, float], ...] = ()  # planning time per stage (grasp, approach, ...)
 
     @property
     def duration(self) -> float:
@@ -118,7 +120,9 @@ def plan_action(
     the reason when this base placement cannot do it."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
+    clock = [("start", time.perf_counter())]
     choice = choose_grasp(robot, inst, action, base=base_m, seed=seed)
+    clock.append(("grasp", time.perf_counter()))
     grasp = choice.ik.grasp_pose
     full = collision_scene(robot, inst, base=base_m)
     link = inst.concept.grasps[choice.option.grasp].link
@@ -129,7 +133,19 @@ def plan_action(
     joint = inst.concept.actions[action].joint
     try:
         parts = _phases(
-            robot, inst, choice, full, held, base_m, q0, path, values, joint, seed, time_limit
+            robot,
+            inst,
+            choice,
+            full,
+            held,
+            base_m,
+            q0,
+            path,
+            values,
+            joint,
+            seed,
+            time_limit,
+            clock,
         )
     except ActionPlanningError as exc:
         goal = f" to {joint} = {to:g}" if joint is not None and to is not None else ""
@@ -140,7 +156,10 @@ def plan_action(
             value=exc.value,
         ) from None
     timed = [_time(robot, q, v, scene, acceleration) for q, v, scene in parts]
-    return _assemble(robot, choice, to, joint, timed, base_m)
+    clock.append(("timing", time.perf_counter()))
+    plan = _assemble(robot, choice, to, joint, timed, base_m)
+    stages = tuple((name, b - a) for (_, a), (name, b) in zip(clock[:-1], clock[1:]))
+    return replace(plan, seconds=stages)
 
 
 def _phases(
@@ -156,8 +175,10 @@ def _phases(
     joint: str | None,
     seed: int,
     time_limit: float,
+    clock: list[tuple[str, float]],
 ) -> list[tuple[FloatArray, FloatArray, _Object]]:
-    """The four phases' joint waypoints, object joint values and collision scenes, checked."""
+    """The four phases' joint waypoints, object joint values and collision scenes, checked
+    (``clock`` gets the time the approach and the tracked phases were done)."""
     to_base = np.linalg.inv(base)
     grasp = choice.ik.grasp_pose
     pre = grasp @ _back(APPROACH)
@@ -168,7 +189,7 @@ def _phases(
         raise ActionPlanningError(
             f"the approach: {exc}", phase="approach", reason="no path"
         ) from None
-
+    clock.append(("approach", time.perf_counter()))
     start_value = float(inst.joints[joint]) if joint is not None else 0.0
     moving = _Object(held, inst, joint)
     insert, _ = _track(robot, _line(to_base @ pre, to_base @ grasp, 8), q_pre, "moving in")
@@ -180,6 +201,7 @@ def _phases(
     retreat_poses = _line(to_base @ path[-1], to_base @ path[-1] @ _back(APPROACH), 8)
     retreat, _ = _track(robot, retreat_poses, interact[-1], "backing out")
     _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
+    clock.append(("tracking", time.perf_counter()))
     return [
         (approach, np.full(len(approach), start_value), _Object(full, inst, None)),
         (insert, np.full(len(insert), start_value), moving),
