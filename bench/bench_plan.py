@@ -15,7 +15,7 @@ Then the cost of one collision query per configuration: the median microseconds 
 ``collides(q)`` and ``distance(q)`` over seeded random configurations, for the robot alone and
 with each concept's instance.
 
-    python bench/bench_plan.py                # every concept, 2 seeds (docs/benchmarks.md)
+    python bench/bench_plan.py                # every concept, 2 seeds, 0.3 of the range
     python bench/bench_plan.py --smoke        # 2 concepts, 1 seed, no result file
 """
 
@@ -121,8 +121,8 @@ def collision_cost(names: list[str], configurations: int, seed: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--seeds", type=int, default=None, help="base placements per concept (2)")
-    ap.add_argument("--fraction", type=float, default=0.5, help="of the joint range (0.5)")
-    ap.add_argument("--configs", type=int, default=None, help="per collision scene (50)")
+    ap.add_argument("--fraction", type=float, default=0.3, help="of the joint range (0.3)")
+    ap.add_argument("--configs", type=int, default=None, help="per collision scene (20)")
     ap.add_argument("--only", nargs="*", default=None, help="concept names")
     ap.add_argument("--smoke", action="store_true", help="no result file")
     ap.add_argument("--quiet", action="store_true")
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = args.seeds or (1 if args.smoke else 2)
     started = time.perf_counter()
     report = plan_concepts(names, seeds, args.fraction, args.quiet)
-    report["collision"] = collision_cost(names, args.configs or (20 if args.smoke else 50), seed=0)
+    report["collision"] = collision_cost(names, args.configs or (5 if args.smoke else 20), seed=0)
     report.update(concepts=names, seeds=seeds, fraction=args.fraction)
     report["wall_s"] = time.perf_counter() - started
     print(

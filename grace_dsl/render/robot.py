@@ -24,9 +24,10 @@ FloatArray = np.ndarray
 ARM_COLOR: style.RGB = (0.80, 0.81, 0.84)
 HAND_COLOR: style.RGB = (0.35, 0.37, 0.42)
 KEY_FRAMES = ("pre-grasp", "grasp", "mid", "end")
-# The camera's frame for a plan: the concept convention's front (+z) is the world's -y, its up
-# (+y) the world's +z, so the view is from the side, a little ahead of the robot.
-SIDE_VIEW = np.column_stack([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+# The camera's frame for a plan: the concept convention's front (+z) is the world's +y, its up
+# (+y) the world's +z, its right (+x) the world's -x: the view is from the side, turned toward
+# the robot, so the arm is seen in front of the object.
+SIDE_VIEW = np.column_stack([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
 FPS = 20  # animation frames per second of trajectory
 
 
@@ -105,7 +106,7 @@ def arm_parts(robot: Any, q: FloatArray, base: FloatArray) -> list[MeshPart]:
 
 def plan_scene(robot: Any, inst: Any, plan: Any, k: int, title: str) -> Scene:
     """The object at the plan's joint value of sample ``k`` and the arm at ``plan.q[k]``, with
-    the chosen grasp's frame."""
+    the gripper frame there (x red, y green: closing, z blue: approach)."""
     posed = inst.with_joints(_joint(plan, k))
     parts = []
     for i, link in enumerate(inst.concept.links):
@@ -116,7 +117,7 @@ def plan_scene(robot: Any, inst: Any, plan: Any, k: int, title: str) -> Scene:
     parts += arm_parts(robot, plan.q[k], plan.base)
     view = np.eye(4)
     view[:3, :3] = SIDE_VIEW
-    frame = GraspFrame(plan.choice.option.grasp, plan.choice.ik.grasp_pose, 0.08)
+    frame = GraspFrame("gripper", plan.base @ robot.fk(plan.q[k]), 0.08)
     return Scene(title, view, tuple(parts), (frame,))
 
 
@@ -155,9 +156,10 @@ def plan_animation(robot: Any, inst: Any, plan: Any, fps: float = FPS) -> tuple[
     names = [p.link for p in scene.parts]
     tracks: dict[int, list[FloatArray]] = {i: [] for i in range(len(names))}
     start_arm = _placements(robot, plan.q[0], plan.base)
-    start_obj = {link: inst.with_joints(_joint(plan, 0)).link_pose(link) for link in names}
     geoms = robot.collision.geometryObjects
     arm_index = {f"robot/{geoms[k].name}": k for k, _, _ in _arm_meshes(robot)}
+    first = inst.with_joints(_joint(plan, 0))
+    start_obj = {link: first.link_pose(link) for link in names if link not in arm_index}
     for q, value in zip(qs, values):
         arm = _placements(robot, q, plan.base)
         posed = inst.with_joints({plan.joint: float(value)} if plan.joint else {})
