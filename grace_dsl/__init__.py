@@ -25,12 +25,13 @@ from grace_dsl.runtime.manipulation import Option
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
-    from grace_dsl.robot.act import ActionPlan, plan_action
+    from grace_dsl.robot.act import ActionPlan, ActionPlanningError, plan_action
     from grace_dsl.robot.choose import GraspChoice, choose_grasp
     from grace_dsl.robot.collision import collision_scene
     from grace_dsl.robot.grasp_ik import GraspIKResult, solve_grasp_ik
     from grace_dsl.robot.ik import IKOptions, IKResult, solve_ik
     from grace_dsl.robot.model import Robot
+    from grace_dsl.robot.timing import time_optimal
 
 # The robot layer loads Pinocchio's robot models and OSQP: imported on first use, so that
 # `import grace_dsl` (and every `eacc` command) stays quick.
@@ -46,6 +47,8 @@ _ROBOT = {
     "collision_scene": "grace_dsl.robot.collision",
     "ActionPlan": "grace_dsl.robot.act",
     "plan_action": "grace_dsl.robot.act",
+    "ActionPlanningError": "grace_dsl.robot.act",
+    "time_optimal": "grace_dsl.robot.timing",
 }
 
 
@@ -59,6 +62,7 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     "ActionPlan",
+    "ActionPlanningError",
     "GraspChoice",
     "GraspIKResult",
     "IKOptions",
@@ -69,6 +73,7 @@ __all__ = [
     "plan_action",
     "solve_grasp_ik",
     "solve_ik",
+    "time_optimal",
     "CompileError",
     "Concept",
     "EvaluationError",

@@ -1,4 +1,4 @@
-"""``grace``: the GRACE pipeline's command line. For now: ``grace demo``."""
+"""``grace``: the GRACE pipeline's command line: ``grace demo`` and ``grace plan``."""
 
 from __future__ import annotations
 
@@ -24,7 +24,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo_parser.add_argument(
         "-o", "--output", default="out/demo", help="where the picture and viewer page go"
     )
+    from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
+
+    add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
     args = parser.parse_args(argv)
+    if args.command == "plan":
+        return run_plan(args)
     if args.command != "demo":
         parser.print_help()
         return 2

@@ -13,13 +13,16 @@ import html
 import json
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from grace_dsl.render import style
 from grace_dsl.render.camera import frame_scene
 from grace_dsl.render.scene import Scene
+
+if TYPE_CHECKING:
+    from grace_dsl.render.robot import Animation
 
 ASPECT = 4 / 3  # the initial framing; the viewer keeps the field of view when resized
 MARGIN = 1.3  # room for the title and legend panels around the object
@@ -38,10 +41,27 @@ def _b64(array: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.ascontiguousarray(array, dtype=dtype).tobytes()).decode("ascii")
 
 
-def scene_json(scene: Scene) -> dict[str, Any]:
-    """Everything the viewer draws, JSON-ready."""
+def animation_json(animation: Animation) -> dict[str, Any]:
+    """The motions of the animated parts: per part, its 4x4 matrices (row-major, float32) at
+    every frame; the times (and the object's joint value) per frame."""
+    values = animation.values
+    return {
+        "frames": len(animation.times),
+        "times": _b64(animation.times, "<f4"),
+        "values": None if values is None else _b64(values, "<f4"),
+        "label": animation.label,
+        "tracks": [
+            {"part": int(i), "poses": _b64(poses.reshape(-1), "<f4")}
+            for i, poses in sorted(animation.tracks.items())
+        ],
+    }
+
+
+def scene_json(scene: Scene, animation: Animation | None = None) -> dict[str, Any]:
+    """Everything the viewer draws, JSON-ready (with the animation, when there is one)."""
     view = frame_scene(scene, ASPECT, margin=MARGIN)
     return {
+        "animation": None if animation is None else animation_json(animation),
         "title": scene.title,
         "background": list(style.BACKGROUND),
         "size": scene.size,
@@ -131,13 +151,15 @@ PAGE = """<!DOCTYPE html>
   #legend ul {{ list-style: none; margin: 0; padding: 0; }}
   .swatch {{ display: inline-block; width: 10px; height: 10px; margin-right: 6px;
     border-radius: 2px; vertical-align: -1px; }}
+  #player {{ bottom: 8px; left: 8px; pointer-events: auto; }}
+  #player input {{ width: 240px; vertical-align: middle; }}
 </style>
 </head>
 <body>
 <canvas id="view"></canvas>
 <div id="title" class="panel"><b>{title}</b><br>{subtitle}</div>
 <div id="legend" class="panel">{legend}</div>
-<script type="application/json" id="scene-data">{data}</script>
+{player}<script type="application/json" id="scene-data">{data}</script>
 <script>
 {viewer}
 </script>
@@ -146,15 +168,24 @@ PAGE = """<!DOCTYPE html>
 """
 
 
-def scene_html(scene: Scene, subtitle: str = "") -> str:
-    """The page's text."""
-    data = script_json(scene_json(scene))
+PLAYER = (
+    '<div id="player" class="panel"><button id="play" type="button">play</button> '
+    '<input id="scrub" type="range" min="0" max="{last}" value="0"> <span id="clock"></span>'
+    "</div>\n"
+)
+
+
+def scene_html(scene: Scene, subtitle: str = "", animation: Animation | None = None) -> str:
+    """The page's text; with ``animation``, a play button and a time slider drive it."""
+    data = script_json(scene_json(scene, animation))
+    player = "" if animation is None else PLAYER.format(last=len(animation.times) - 1)
     hint = "drag: orbit &middot; wheel: zoom &middot; shift-drag: pan &middot; double-click: reset"
     return PAGE.format(
         title=html.escape(scene.title),
         subtitle=(html.escape(subtitle) + "<br>" if subtitle else "") + hint,
         bg=style.hex_color(style.BACKGROUND),
         legend=_legend(scene),
+        player=player,
         data=data,
         viewer=_viewer_source(),
     )

@@ -27,7 +27,7 @@
   // ---- geometry: one triangle soup (flat normals) for meshes and decorations -------------------
   var tris = [];  // {p: [a, b, c], n: normal, c: [r, g, b], a: opacity, e: emission}
 
-  data.parts.forEach(function (part) {
+  data.parts.forEach(function (part, index) {
     var v = decode(part.positions, Float32Array), f = decode(part.indices, Uint32Array);
     for (var t = 0; t < f.length; t += 3) {
       var p = [0, 1, 2].map(function (k) {
@@ -36,9 +36,35 @@
       });
       var n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
       if (norm(n) === 0) continue;
-      tris.push({ p: p, n: unit(n), c: part.color, a: part.opacity, e: 0 });
+      // p0, n0: where the part is in the scene (an animation's frame 0); p, n: where it is now
+      tris.push({ p: p, n: unit(n), p0: p, n0: unit(n), part: index, c: part.color,
+        a: part.opacity, e: 0 });
     }
   });
+
+  // ---- animation: rigid motions of parts (a planned trajectory), frame by frame ---------------------
+  var anim = data.animation, tracks = {};
+  if (anim) {
+    anim.times = decode(anim.times, Float32Array);
+    anim.values = anim.values ? decode(anim.values, Float32Array) : null;
+    anim.tracks.forEach(function (tr) { tracks[tr.part] = decode(tr.poses, Float32Array); });
+  }
+
+  function moveTo(frame) {  // every animated triangle to its place at `frame`
+    tris.forEach(function (t) {
+      var m = tracks[t.part];
+      if (!m) return;
+      var o = 16 * frame;
+      function apply(x, w) {
+        return [0, 1, 2].map(function (r) {
+          var b = o + 4 * r;
+          return m[b] * x[0] + m[b + 1] * x[1] + m[b + 2] * x[2] + w * m[b + 3];
+        });
+      }
+      t.p = t.p0.map(function (x) { return apply(x, 1); });
+      t.n = apply(t.n0, 0);
+    });
+  }
 
   function ring(center, u, w, r, sides) {
     var out = [];
@@ -151,11 +177,18 @@
     var n = order.length * 3;
     var pos = new Float32Array(n * 3), nor = new Float32Array(n * 3);
     var col = new Float32Array(n * 4), emi = new Float32Array(n);
+    function fill() {
+      order.forEach(function (t, i) {
+        for (var k = 0; k < 3; k++) {
+          var o = (3 * i + k) * 3;
+          pos.set(t.p[k], o);
+          nor.set(t.n, o);
+        }
+      });
+    }
+    fill();
     order.forEach(function (t, i) {
       for (var k = 0; k < 3; k++) {
-        var o = (3 * i + k) * 3;
-        pos.set(t.p[k], o);
-        nor.set(t.n, o);
         col.set([t.c[0], t.c[1], t.c[2], t.a], (3 * i + k) * 4);
         emi[3 * i + k] = t.e;
       }
@@ -163,19 +196,20 @@
     function attrib(name, array, size) {
       var buf = gl.createBuffer();
       gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-      gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
+      gl.bufferData(gl.ARRAY_BUFFER, array, anim ? gl.DYNAMIC_DRAW : gl.STATIC_DRAW);
       var loc = gl.getAttribLocation(prog, name);
       gl.enableVertexAttribArray(loc);
       gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 0, 0);
+      return buf;
     }
     gl.useProgram(prog);
-    attrib("aPos", pos, 3);
-    attrib("aNormal", nor, 3);
+    var posBuf = attrib("aPos", pos, 3);
+    var norBuf = attrib("aNormal", nor, 3);
     attrib("aColor", col, 4);
     attrib("aEmit", emi, 1);
     gl.enable(gl.DEPTH_TEST);
     var uMVP = gl.getUniformLocation(prog, "uMVP"), uRot = gl.getUniformLocation(prog, "uRot");
-    return function draw(m) {
+    var drawn = function draw(m) {
       gl.viewport(0, 0, canvas.width, canvas.height);
       var bg = data.background;
       gl.clearColor(bg[0], bg[1], bg[2], 1);
@@ -192,6 +226,14 @@
         gl.drawArrays(gl.TRIANGLES, nOpaque, n - nOpaque);
       }
     };
+    drawn.upload = function () {  // the triangles moved (an animation frame)
+      fill();
+      gl.bindBuffer(gl.ARRAY_BUFFER, posBuf);
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, pos);
+      gl.bindBuffer(gl.ARRAY_BUFFER, norBuf);
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, nor);
+    };
+    return drawn;
   }
 
   // ---- Canvas 2D: painter's algorithm, back faces of meshes culled -------------------------------------
@@ -350,6 +392,42 @@
   // resizing clears the canvas: draw again at once, not on a timer
   window.addEventListener("resize", function () { resize(); render(); });
 
+  // ---- the player: a play button and a time slider, when the scene is animated --------------------
+  var frame = 0, playing = false;
+  function show(f) {
+    frame = Math.max(0, Math.min(anim.frames - 1, f));
+    moveTo(frame);
+    if (draw.upload) draw.upload();
+    document.getElementById("scrub").value = String(frame);
+    var text = "t = " + anim.times[frame].toFixed(2) + " / " + anim.times[anim.frames - 1].toFixed(2) + " s";
+    if (anim.values) text += ", " + anim.label + " = " + anim.values[frame].toFixed(3);
+    document.getElementById("clock").textContent = text;
+    document.body.setAttribute("data-frame", String(frame));
+    render();
+  }
+  function tick() {
+    if (!playing) return;
+    if (frame >= anim.frames - 1) { playing = false; label(); return; }
+    show(frame + 1);
+    var dt = anim.times[Math.min(frame + 1, anim.frames - 1)] - anim.times[frame];
+    window.setTimeout(tick, Math.max(1, 1000 * dt));
+  }
+  function label() { document.getElementById("play").textContent = playing ? "pause" : "play"; }
+  if (anim) {
+    document.getElementById("play").addEventListener("click", function () {
+      playing = !playing;
+      if (playing && frame >= anim.frames - 1) show(0);
+      label();
+      tick();
+    });
+    document.getElementById("scrub").addEventListener("input", function (ev) {
+      playing = false;
+      label();
+      show(parseInt(ev.target.value, 10));
+    });
+  }
+
   resize();
+  if (anim) show(0);
   render();  // at once, so the page shows the scene as soon as it is loaded
 })();

@@ -7,11 +7,19 @@ moves, or a straight push along the force for an action that moves no joint) by 
 the same IK warm-started from the previous sample, and backs out. Every tracked sample must be
 reached within the IK tolerance and move no joint by more than ``MAX_JOINT_STEP``; otherwise the
 plan fails with a reason, never with a jump.
+
+Collisions are checked all the way: the approach against everything; moving in, the interaction
+and backing out against everything too, the object posed at the joint value the hand has moved
+it to, except that the fingers may press into the grasped link by up to ``FINGER_ALLOWANCE``.
+Each phase is then timed by the time-optimal parameterization (``robot.timing``) along a spline
+through its waypoints, re-checked at the timed samples; where the spline would touch something
+or leave the joint limits, the phase falls back to its polyline, stopping at the corners.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -21,7 +29,13 @@ from grace_dsl.robot.choose import GraspChoice, choose_grasp
 from grace_dsl.robot.collision import CollisionScene, collision_scene
 from grace_dsl.robot.ik import IKOptions, solve_ik
 from grace_dsl.robot.model import Robot, rigid_pose
-from grace_dsl.robot.plan import PlanningError, plan_path, time_path
+from grace_dsl.robot.plan import (
+    CHECK_RESOLUTION,
+    DEFAULT_ACCELERATION,
+    PlanningError,
+    plan_path,
+)
+from grace_dsl.robot.timing import Trajectory, time_optimal
 from grace_dsl.runtime.errors import GraceError
 
 FloatArray = np.ndarray
@@ -30,17 +44,32 @@ APPROACH = 0.10  # metres backed off along the approach axis before and after th
 PUSH_DISTANCE = 0.10  # metres travelled by an action that moves no joint
 MIN_SEGMENT = 1e-3  # metres: tracked segments are halved down to this where joints move fast
 REACH_ATTEMPTS = 8
+FINGER_ALLOWANCE = 0.005  # metres the fingers may press into the link they hold
+FINGERS = ("panda_leftfinger", "panda_rightfinger")
+GRIP_TIME = 0.5  # seconds the hand rests while the gripper closes or opens
+PHASES = ("approach", "insert", "interact", "retreat")
 
 
 class ActionPlanningError(PlanningError):
-    """The action cannot be carried out from this base placement (the reason says where)."""
+    """The action cannot be carried out from this base placement (the reason says where).
+
+    ``phase`` names the stretch that failed (``pre-grasp``, ``moving in``, ``following the
+    action``, ``backing out``), ``reason`` is ``unreachable``, ``jump`` or ``collision``, and
+    ``value`` the object's joint value there (how far it could be opened), when known."""
+
+    def __init__(
+        self, message: str, *, phase: str = "", reason: str = "", value: float | None = None
+    ) -> None:
+        super().__init__(message)
+        self.phase, self.reason, self.value = phase, reason, value
 
 
 @dataclass(frozen=True)
 class ActionPlan:
     """Joint waypoints ``q`` (K, n) at times ``t`` (K,); ``phases`` name index ranges
     ``(name, start, stop)``; ``gripper`` the hand's commands ``(time, width in metres)``,
-    a width of 0 meaning "close on what is between the fingers"."""
+    a width of 0 meaning "close on what is between the fingers". ``joint_values`` (K,) is the
+    object's joint ``joint`` at each waypoint (its initial value outside the interaction)."""
 
     q: FloatArray
     t: FloatArray
@@ -48,6 +77,21 @@ class ActionPlan:
     gripper: tuple[tuple[float, float], ...]
     choice: GraspChoice
     to: float | None
+    joint: str | None
+    joint_values: FloatArray
+    base: FloatArray
+    seconds: tuple[tuple[str, float], ...] = ()  # planning time per stage (grasp, approach, ...)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    def span(self, name: str) -> tuple[float, float]:
+        """Start and end time of phase ``name``."""
+        for phase, start, stop in self.phases:
+            if phase == name:
+                return float(self.t[start]), float(self.t[stop - 1])
+        raise KeyError(name)
 
     def phase(self, name: str) -> FloatArray:
         for phase, start, stop in self.phases:
@@ -67,26 +111,162 @@ def plan_action(
     steps: int = 24,
     seed: int = 0,
     time_limit: float = 2.0,
+    acceleration: float | FloatArray = DEFAULT_ACCELERATION,
+    allowance: float = FINGER_ALLOWANCE,
 ) -> ActionPlan:
     """The trajectory that performs ``action`` on ``inst`` to joint value ``to`` (default the
     end of the joint's range the action drives toward; for an action that moves no joint, a
     push of ``PUSH_DISTANCE``). Raises :class:`ActionPlanningError` (or ``NoGraspError``) with
     the reason when this base placement cannot do it."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
-    to_base = np.linalg.inv(base_m)
     q0 = robot.home if q_start is None else robot.check_q(q_start)
+    clock = [("start", time.perf_counter())]
     choice = choose_grasp(robot, inst, action, base=base_m, seed=seed)
+    clock.append(("grasp", time.perf_counter()))
     grasp = choice.ik.grasp_pose
     full = collision_scene(robot, inst, base=base_m)
+    link = inst.concept.grasps[choice.option.grasp].link
+    held = collision_scene(
+        robot, inst, base=base_m, touching=[(f, link) for f in FINGERS], allowance=allowance
+    )
+    path, values, to = _action_path(inst, action, grasp, to, steps)
+    joint = inst.concept.actions[action].joint
+    try:
+        parts = _phases(
+            robot,
+            inst,
+            choice,
+            full,
+            held,
+            base_m,
+            q0,
+            path,
+            values,
+            joint,
+            seed,
+            time_limit,
+            clock,
+        )
+    except ActionPlanningError as exc:
+        goal = f" to {joint} = {to:g}" if joint is not None and to is not None else ""
+        raise ActionPlanningError(
+            f"{inst.concept.name}: cannot {action}{goal} from this base placement: {exc}",
+            phase=exc.phase,
+            reason=exc.reason,
+            value=exc.value,
+        ) from None
+    timed = [_time(robot, q, v, scene, acceleration) for q, v, scene in parts]
+    clock.append(("timing", time.perf_counter()))
+    plan = _assemble(robot, choice, to, joint, timed, base_m)
+    stages = tuple((name, b - a) for (_, a), (name, b) in zip(clock[:-1], clock[1:]))
+    return replace(plan, seconds=stages)
+
+
+def _phases(
+    robot: Robot,
+    inst: Any,
+    choice: GraspChoice,
+    full: CollisionScene,
+    held: CollisionScene,
+    base: FloatArray,
+    q0: FloatArray,
+    path: FloatArray,
+    values: FloatArray,
+    joint: str | None,
+    seed: int,
+    time_limit: float,
+    clock: list[tuple[str, float]],
+) -> list[tuple[FloatArray, FloatArray, _Object]]:
+    """The four phases' joint waypoints, object joint values and collision scenes, checked
+    (``clock`` gets the time the approach and the tracked phases were done)."""
+    to_base = np.linalg.inv(base)
+    grasp = choice.ik.grasp_pose
     pre = grasp @ _back(APPROACH)
     q_pre = _reach(robot, to_base @ pre, choice.ik.q, full, "the pre-grasp pose", seed)
-    approach = plan_path(full, q0, q_pre, time_limit=time_limit, seed=seed)
-    insert = _track(robot, _line(to_base @ pre, to_base @ grasp, 8), q_pre, "moving in")
-    path, to = _action_path(inst, action, grasp, to, steps)
-    interact = _track(robot, to_base @ path, insert[-1], "following the action")
+    try:
+        approach = plan_path(full, q0, q_pre, time_limit=time_limit, seed=seed)
+    except PlanningError as exc:
+        raise ActionPlanningError(
+            f"the approach: {exc}", phase="approach", reason="no path"
+        ) from None
+    clock.append(("approach", time.perf_counter()))
+    start_value = float(inst.joints[joint]) if joint is not None else 0.0
+    moving = _Object(held, inst, joint)
+    insert, _ = _track(robot, _line(to_base @ pre, to_base @ grasp, 8), q_pre, "moving in")
+    _check(moving, insert, np.full(len(insert), start_value), "moving in")
+    interact, held_values = _track(
+        robot, to_base @ path, insert[-1], "following the action", values, joint
+    )
+    _check(moving, interact, held_values, "following the action")
     retreat_poses = _line(to_base @ path[-1], to_base @ path[-1] @ _back(APPROACH), 8)
-    retreat = _track(robot, retreat_poses, interact[-1], "backing out")
-    return _assemble(robot, choice, to, [approach, insert, interact, retreat])
+    retreat, _ = _track(robot, retreat_poses, interact[-1], "backing out")
+    _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
+    clock.append(("tracking", time.perf_counter()))
+    return [
+        (approach, np.full(len(approach), start_value), _Object(full, inst, None)),
+        (insert, np.full(len(insert), start_value), moving),
+        (interact, held_values, moving),
+        (retreat, np.full(len(retreat), held_values[-1]), moving),
+    ]
+
+
+@dataclass(frozen=True)
+class _Object:
+    """A collision scene whose object moves with its joint ``joint`` (None: it stays put)."""
+
+    scene: CollisionScene
+    inst: Any
+    joint: str | None
+
+    def collides(self, q: FloatArray, value: float) -> bool:
+        if self.joint is not None:
+            self.scene.place(self.inst.with_joints({self.joint: value}))
+        return self.scene.collides(q)
+
+    def contact(self, q: FloatArray, value: float) -> str:
+        self.collides(q, value)
+        hit = self.scene.contacts(q)
+        return f"{hit[0].first} touches {hit[0].second}" if hit else "a contact"
+
+
+def _check(
+    moving: _Object, qs: FloatArray, values: FloatArray, what: str, *, fail: bool = True
+) -> bool:
+    """Every configuration on the straight segments between the waypoints ``qs`` (the object at
+    the interpolated joint ``values``) free, every ``CHECK_RESOLUTION`` on the arm's joints and
+    the object's; else :class:`ActionPlanningError` naming the contact (or False)."""
+    for k in range(len(qs) - 1):
+        dq, dv = qs[k + 1] - qs[k], values[k + 1] - values[k]
+        n = max(1, int(np.ceil(max(float(np.max(np.abs(dq))), abs(dv)) / CHECK_RESOLUTION)))
+        for w in np.linspace(0.0, 1.0, n + 1)[(1 if k else 0) :]:
+            q, value = qs[k] + w * dq, values[k] + w * dv
+            if moving.collides(q, value):
+                if not fail:
+                    return False
+                at = f" with {moving.joint} at {value:.3f}" if moving.joint else ""
+                raise ActionPlanningError(
+                    f"{what}: {moving.contact(q, value)}{at}",
+                    phase=what,
+                    reason="collision",
+                    value=values[k] if moving.joint else None,
+                )
+    return True
+
+
+def _time(
+    robot: Robot,
+    qs: FloatArray,
+    values: FloatArray,
+    moving: _Object,
+    acceleration: float | FloatArray,
+) -> Trajectory:
+    """The phase timed time-optimally along a spline through ``qs``, when the spline stays
+    inside the limits and free; else along the (already checked) polyline."""
+    smooth = time_optimal(qs, robot.velocity_limit, acceleration, extra=values)
+    inside = np.all(smooth.q >= robot.lower) and np.all(smooth.q <= robot.upper)
+    if inside and _check(moving, smooth.q, smooth.extra[:, 0], "", fail=False):
+        return smooth
+    return time_optimal(qs, robot.velocity_limit, acceleration, extra=values, smooth=False)
 
 
 def _back(distance: float) -> FloatArray:
@@ -118,19 +298,30 @@ def _reach(
             return np.asarray(result.q)
         hit = scene.contacts(result.q)[0]
         reason = f"in collision ({hit.first} touches {hit.second})"
-    raise ActionPlanningError(f"{what} is {reason}")
+    kind = "collision" if reason.startswith("in collision") else "unreachable"
+    raise ActionPlanningError(f"{what} is {reason}", phase="pre-grasp", reason=kind)
 
 
-def _track(robot: Robot, poses: FloatArray, q: FloatArray, what: str) -> FloatArray:
+def _track(
+    robot: Robot,
+    poses: FloatArray,
+    q: FloatArray,
+    what: str,
+    values: FloatArray | None = None,
+    joint: str | None = None,
+) -> tuple[FloatArray, FloatArray]:
     """IK of each pose warm-started from the last, without restarts (no jump to another branch).
     Where one sample moves a joint more than ``MAX_JOINT_STEP``, the segment is halved (down to
-    ``MIN_SEGMENT`` of travel): a fast-turning stretch gets denser samples, a true jump fails."""
+    ``MIN_SEGMENT`` of travel): a fast-turning stretch gets denser samples, a true jump fails.
+    ``values`` (one per pose: the object's joint) are interpolated into the halved segments;
+    returns the joint waypoints and the values at them. A failure names the last value reached."""
     opts = IKOptions(max_restarts=0)
-    out = [np.asarray(q)]
-    pending = list(poses[:0:-1])  # a stack: the next target on top
+    carried = np.zeros(len(poses)) if values is None else np.asarray(values, float)
+    out, out_values = [np.asarray(q)], [float(carried[0])]
+    pending = list(zip(poses[:0:-1], carried[:0:-1]))  # a stack: the next target on top
     last = poses[0]
     while pending:
-        pose = pending.pop()
+        pose, value = pending.pop()
         result = solve_ik(robot, pose, q0=out[-1], options=opts)
         step = float(np.max(np.abs(result.q - out[-1])))
         travel = float(np.linalg.norm(pose[:3, 3] - last[:3, 3]))
@@ -138,20 +329,28 @@ def _track(robot: Robot, poses: FloatArray, q: FloatArray, what: str) -> FloatAr
             middle = pose.copy()
             middle[:3, 3] = (pose[:3, 3] + last[:3, 3]) / 2  # orientations of a path differ little
             middle[:3, :3] = _mid_rotation(last[:3, :3], pose[:3, :3])
-            pending += [pose, middle]
+            pending += [(pose, value), (middle, (value + out_values[-1]) / 2)]
             continue
+        at = f" at {joint} = {value:.3f}" if joint else ""
         if not result.success:
             raise ActionPlanningError(
-                f"{what}: a pose is out of reach ({result.error_pos * 1e3:.1f} mm off; a joint "
-                "limit or the workspace's edge)"
+                f"{what}: a pose{at} is out of reach ({result.error_pos * 1e3:.1f} mm off; a "
+                "joint limit or the workspace's edge)",
+                phase=what,
+                reason="unreachable",
+                value=out_values[-1] if joint else None,
             )
         if step > MAX_JOINT_STEP:
             raise ActionPlanningError(
-                f"{what}: a joint must jump {step:.2f} rad (a singularity or a joint limit)"
+                f"{what}: a joint must jump {step:.2f} rad{at} (a singularity or a joint limit)",
+                phase=what,
+                reason="jump",
+                value=out_values[-1] if joint else None,
             )
         out.append(np.asarray(result.q))
+        out_values.append(float(value))
         last = pose
-    return np.stack(out)
+    return np.stack(out), np.asarray(out_values)
 
 
 def _mid_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -161,7 +360,8 @@ def _mid_rotation(a: FloatArray, b: FloatArray) -> FloatArray:
 
 def _action_path(
     inst: Any, action: str, grasp: FloatArray, to: float | None, steps: int
-) -> tuple[FloatArray, float | None]:
+) -> tuple[FloatArray, FloatArray, float | None]:
+    """The hand's poses along the action, the object's joint value at each, and the target."""
     spec = inst.concept.actions[action]
     joint = spec.joint
     if joint is None:
@@ -169,28 +369,54 @@ def _action_path(
         shifts = np.linspace(0.0, PUSH_DISTANCE, steps)[:, None] * force
         path = np.repeat(grasp[None], steps, axis=0)
         path[:, :3, 3] += shifts
-        return path, None
+        return path, np.zeros(steps), None
     lo, hi = inst.joint_limits()[joint]
     target = (hi if spec.opening else lo) if to is None else float(to)
     try:
-        return inst.follow(action, grasp=grasp, to=target, steps=steps), target
+        path = inst.follow(action, grasp=grasp, to=target, steps=steps)
     except GraceError as exc:
         raise ActionPlanningError(f"{action} cannot move {joint} to {target:g}: {exc}") from None
+    return path, np.linspace(float(inst.joints[joint]), target, steps), target
 
 
 def _assemble(
-    robot: Robot, choice: GraspChoice, to: float | None, parts: list[FloatArray]
+    robot: Robot,
+    choice: GraspChoice,
+    to: float | None,
+    joint: str | None,
+    parts: list[Trajectory],
+    base: FloatArray,
 ) -> ActionPlan:
-    names = ("approach", "insert", "interact", "retreat")
-    waypoints = [parts[0]] + [p[1:] for p in parts[1:]]  # each part starts where the last ended
-    q = np.concatenate(waypoints)
-    timed = time_path(q, robot.velocity_limit)
-    phases, start = [], 0
-    for name, part in zip(names, waypoints):
-        phases.append((name, max(0, start - 1) if name != "approach" else 0, start + len(part)))
-        start += len(part)
-    at = {name: float(timed.t[begin]) for name, begin, _ in phases}
+    """One trajectory from the timed phases, resting ``GRIP_TIME`` where the gripper changes."""
     width = robot.gripper.max_width
     grip = 0.0 if choice.option.mode == "pinch" else width
-    commands = ((0.0, width), (at["interact"], grip), (at["retreat"], width))
-    return ActionPlan(timed.q, timed.t, tuple(phases), commands, choice, to)
+    pause = {"interact": GRIP_TIME if grip != width else 0.0}
+    pause["retreat"] = pause["interact"]
+    qs, ts, values, phases = [parts[0].q], [parts[0].t], [parts[0].extra[:, 0]], []
+    phases.append((PHASES[0], 0, len(parts[0].t)))
+    size, end = len(parts[0].t), float(parts[0].t[-1])
+    for name, part in zip(PHASES[1:], parts[1:]):
+        wait = pause.get(name, 0.0)
+        begin = size - 1
+        if wait:  # hold the pose while the hand closes or opens: one more sample, later
+            qs.append(part.q[:1])
+            ts.append(np.array([end + wait]))
+            values.append(part.extra[:1, 0])
+            begin, size, end = size, size + 1, end + wait
+        qs.append(part.q[1:])
+        ts.append(part.t[1:] + end)
+        values.append(part.extra[1:, 0])
+        size += len(part.t) - 1
+        end += float(part.t[-1])
+        phases.append((name, begin, size))
+    q, t = np.concatenate(qs), np.concatenate(ts)
+    at = {name: float(t[begin]) for name, begin, _ in phases}
+    commands = (
+        (0.0, width),
+        (at["interact"] - pause["interact"], grip),
+        (at["retreat"] - pause["retreat"], width),
+    )
+    arrays = [q, t, np.concatenate(values)]
+    for a in arrays:
+        a.setflags(write=False)
+    return ActionPlan(arrays[0], t, tuple(phases), commands, choice, to, joint, arrays[2], base)

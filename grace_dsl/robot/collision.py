@@ -5,6 +5,11 @@ collision mesh: exact for the Panda's convex-ish links and far faster for distan
 triangle soup) and an instance's links as triangle meshes (BVH), posed in the robot's base frame.
 Self-collision pairs are all pairs of robot bodies on different joints minus the pairs the
 robot's SRDF disables (adjacent links that always touch).
+
+The object's links keep their own meshes (in the link's frame) and are placed by their poses, so
+``scene.place(inst)`` moves them to another instance's joint values (an opening door) without
+rebuilding anything. Pairs named in ``touching`` (the fingers and the grasped link) may
+interpenetrate by up to ``allowance``: a hand holding a handle touches it, nothing else may.
 """
 
 from __future__ import annotations
@@ -41,6 +46,10 @@ class CollisionScene:
     robot_geoms: tuple[int, ...]
     object_geoms: tuple[int, ...]
     margin: float = 0.0
+    object_links: tuple[str, ...] = ()
+    to_base: FloatArray = field(default_factory=lambda: np.eye(4), repr=False)
+    touching: tuple[int, ...] = ()  # collision pair indices allowed to penetrate by `allowance`
+    allowance: float = 0.0
     _data: Any = field(default=None, repr=False)
 
     def _geometry_data(self) -> Any:
@@ -48,46 +57,83 @@ class CollisionScene:
             self._data = self.geometry.createData()
             for request in self._data.collisionRequests:
                 request.security_margin = self.margin
+            for k in self.touching:
+                self._data.deactivateCollisionPair(k)  # checked on their own, with the allowance
+                request = self._data.collisionRequests[k]
+                request.enable_contact = True
+                request.num_max_contacts = 64
         return self._data
 
-    def collides(self, q: Any) -> bool:
-        """True when any pair is in contact (closer than ``margin``) at configuration ``q``."""
-        q = self.robot.check_q(q)
-        return bool(
-            pin.computeCollisions(
-                self.robot.model, self.robot.data(), self.geometry, self._geometry_data(), q, True
+    def place(self, inst: Any) -> None:
+        """Pose the object's links as in ``inst`` (the same concept at other joint values)."""
+        for k, link in zip(self.object_geoms, self.object_links):
+            self.geometry.geometryObjects[k].placement = pin.SE3(
+                self.to_base @ inst.link_pose(link)
             )
-        )
+
+    def collides(self, q: Any) -> bool:
+        """True when any pair is in contact (closer than ``margin``) at configuration ``q``, a
+        ``touching`` pair only when it penetrates deeper than ``allowance``."""
+        q = self.robot.check_q(q)
+        data = self._geometry_data()
+        if pin.computeCollisions(self.robot.model, self.robot.data(), self.geometry, data, q, True):
+            return True
+        return any(self._depth(k) > self.allowance for k in self.touching)
+
+    def _depth(self, k: int) -> float:
+        """How deep the pair ``k`` interpenetrates (0 when apart), placements already updated."""
+        data = self._data
+        if not pin.computeCollision(self.geometry, data, k):
+            return 0.0
+        result = data.collisionResults[k]
+        depths = [abs(result.getContact(i).penetration_depth) for i in range(result.numContacts())]
+        return max(depths, default=0.0)
 
     def contacts(self, q: Any) -> list[Contact]:
-        """Every pair in contact at ``q``, with its signed distance."""
+        """Every pair in contact at ``q``, with its signed distance (a ``touching`` pair only
+        when deeper than the allowance; its distance is then minus the depth)."""
         q = self.robot.check_q(q)
         data = self._geometry_data()
         pin.computeCollisions(self.robot.model, self.robot.data(), self.geometry, data, q, False)
         found = []
+        touching = set(self.touching)
         for k, result in enumerate(data.collisionResults):
-            if result.isCollision():
-                pair = self.geometry.collisionPairs[k]
+            pair = self.geometry.collisionPairs[k]
+            if k in touching:
+                depth = self._depth(k)
+                if depth > self.allowance:
+                    found.append(Contact(self._name(pair.first), self._name(pair.second), -depth))
+            elif result.isCollision():
                 distance = pin.computeDistance(self.geometry, data, k).min_distance
                 found.append(Contact(self._name(pair.first), self._name(pair.second), distance))
         return found
 
     def distance(self, q: Any) -> float:
-        """The smallest distance between any pair at ``q`` (negative when they penetrate)."""
+        """The smallest distance between any pair at ``q`` (negative when they penetrate), the
+        ``touching`` pairs left out (they may touch)."""
         return min(self._distances(q), default=np.inf)
 
     def object_distance(self, q: Any) -> float:
-        """The smallest distance between the robot and the object at ``q`` (inf without one)."""
+        """The smallest distance between the robot and the object at ``q`` (inf without one),
+        the ``touching`` pairs left out."""
         objects = set(self.object_geoms)
         pairs = self.geometry.collisionPairs
-        found = [d for d, p in zip(self._distances(q), pairs) if p.second in objects]
+        found = [
+            d
+            for k, (d, p) in enumerate(zip(self._distances(q), pairs))
+            if p.second in objects and np.isfinite(d)
+        ]
         return min(found, default=np.inf)
 
     def _distances(self, q: Any) -> list[float]:
         q = self.robot.check_q(q)
         data = self._geometry_data()
         pin.computeDistances(self.robot.model, self.robot.data(), self.geometry, data, q)
-        return [float(r.min_distance) for r in data.distanceResults]
+        touching = set(self.touching)
+        return [
+            np.inf if k in touching else float(r.min_distance)
+            for k, r in enumerate(data.distanceResults)
+        ]
 
     def _name(self, index: int) -> str:
         return str(self.geometry.geometryObjects[index].name)
@@ -99,6 +145,8 @@ def collision_scene(
     *,
     margin: float = 0.0,
     ignore: Sequence[str] = (),
+    touching: Sequence[tuple[str, str]] = (),
+    allowance: float = 0.005,
     srdf: str | Path | None = None,
     base: Any = None,
 ) -> CollisionScene:
@@ -107,7 +155,9 @@ def collision_scene(
 
     ``ignore`` names robot bodies (prefixes of their geometry names, e.g. ``panda_leftfinger``)
     that may touch the object: the fingers at a grasp. ``srdf`` defaults to the one beside the
-    robot's URDF (``../srdf/<name>.srdf``) when it exists.
+    robot's URDF (``../srdf/<name>.srdf``) when it exists. ``touching`` names pairs
+    ``(robot body prefix, object link)`` that may interpenetrate by up to ``allowance`` metres:
+    the fingers and the link they hold.
     """
     geometry = pin.GeometryModel()
     robot_geoms = []
@@ -119,14 +169,28 @@ def collision_scene(
     _remove_srdf_pairs(robot, geometry, srdf)
     to_base = np.eye(4) if base is None else np.linalg.inv(rigid_pose(base, "the robot base pose"))
     objects = _object_geometry(inst, to_base) if inst is not None else []
-    object_geoms = [geometry.addGeometryObject(g) for g in objects]
+    object_geoms = [geometry.addGeometryObject(g) for _, g in objects]
+    links = [link for link, _ in objects]
+    allowed = []
     for i in robot_geoms:
         name = geometry.geometryObjects[i].name
         if any(name.startswith(prefix) for prefix in ignore):
             continue
-        for j in object_geoms:
+        for j, link in zip(object_geoms, links):
             geometry.addCollisionPair(pin.CollisionPair(i, j))
-    return CollisionScene(robot, geometry, tuple(robot_geoms), tuple(object_geoms), margin)
+            if any(name.startswith(body) and link == held for body, held in touching):
+                allowed.append(geometry.findCollisionPair(pin.CollisionPair(i, j)))
+    return CollisionScene(
+        robot,
+        geometry,
+        tuple(robot_geoms),
+        tuple(object_geoms),
+        margin,
+        tuple(links),
+        to_base,
+        tuple(allowed),
+        float(allowance),
+    )
 
 
 def _convex_hull(geometry: Any) -> Any:
@@ -142,18 +206,22 @@ def _remove_srdf_pairs(robot: Robot, geometry: pin.GeometryModel, srdf: str | Pa
         pin.removeCollisionPairs(robot.model, geometry, str(path), False)
 
 
-def _object_geometry(inst: Any, to_base: FloatArray) -> list[pin.GeometryObject]:
-    """One static BVH mesh per link of ``inst`` that has shapes, in the robot's base frame."""
+def _object_geometry(inst: Any, to_base: FloatArray) -> list[tuple[str, pin.GeometryObject]]:
+    """One BVH mesh per link of ``inst`` that has shapes, in the link's frame, placed at the
+    link's pose in the robot's base frame."""
     out = []
     for link in inst.concept.links:
         mesh = inst.link_mesh(link)
         if len(mesh.faces) == 0:
             continue
+        pose = inst.link_pose(link)
+        to_link = np.linalg.inv(pose)
         bvh = coal.BVHModelOBBRSS()
         bvh.beginModel(len(mesh.faces), len(mesh.vertices))
-        vertices = np.asarray(mesh.vertices, dtype=float) @ to_base[:3, :3].T + to_base[:3, 3]
+        vertices = np.asarray(mesh.vertices, dtype=float) @ to_link[:3, :3].T + to_link[:3, 3]
         bvh.addVertices(np.ascontiguousarray(vertices))
         bvh.addTriangles(np.ascontiguousarray(mesh.faces, dtype=np.int64))
         bvh.endModel()
-        out.append(pin.GeometryObject(f"object/{link}", 0, pin.SE3.Identity(), bvh))
+        placement = pin.SE3(to_base @ pose)
+        out.append((link, pin.GeometryObject(f"object/{link}", 0, placement, bvh)))
     return out

@@ -85,3 +85,44 @@ def test_ignored_fingers_may_touch(panda: Robot, drawer) -> None:  # type: ignor
 def test_bad_configuration_is_a_typed_error(panda: Robot) -> None:
     with pytest.raises(eac.ParameterError):
         collision_scene(panda).collides([0.0, 1.0])
+
+
+def test_placing_the_object_equals_building_it_there(panda: Robot, drawer) -> None:  # type: ignore[no-untyped-def]
+    inst = drawer.instantiate(pose=_at((0.55, 0.0, 0.3)))
+    moved = collision_scene(panda, inst)
+    gaps = [moved.object_distance(panda.home)]
+    for slide in (0.1, 0.3):
+        opened = inst.with_joints(slide=slide)
+        moved.place(opened)
+        fresh = collision_scene(panda, opened)
+        gaps.append(moved.object_distance(panda.home))
+        assert gaps[-1] == pytest.approx(fresh.object_distance(panda.home), abs=1e-6)  # float32
+    assert len(set(np.round(gaps, 4))) == 3  # the drawer did move
+
+
+def test_held_link_may_be_pressed_only_within_the_allowance(panda: Robot) -> None:
+    from grace_dsl.robot.choose import choose_grasp
+    from tests.robot.test_grasp_ik import facing
+
+    door = eac.load_library()["SunkenDoor"]
+    choice = choose_grasp(panda, door.instantiate(pose=facing(0.7, 0.0, 0.45)), "open")
+    fingers = [("panda_leftfinger", "leaf"), ("panda_rightfinger", "leaf")]
+    approach = choice.ik.grasp_pose[:3, 2]
+    verdicts = {}
+    for push in (0.0, 0.02):  # the door moved toward the hand: the fingertips sink into it
+        pose = facing(0.7, 0.0, 0.45)
+        pose[:3, 3] -= push * approach
+        inst = door.instantiate(pose=pose)
+        for allowance in (0.005, 0.03):
+            scene = collision_scene(panda, inst, touching=fingers, allowance=allowance)
+            verdicts[push, allowance] = scene.collides(choice.ik.q)
+            if verdicts[push, allowance]:
+                hits = scene.contacts(choice.ik.q)
+                assert all("finger" in h.first and -push < h.distance < -allowance for h in hits)
+        assert collision_scene(panda, inst).collides(choice.ik.q) == (push > 0)
+    assert verdicts == {
+        (0.0, 0.005): False,
+        (0.0, 0.03): False,
+        (0.02, 0.005): True,
+        (0.02, 0.03): False,
+    }
