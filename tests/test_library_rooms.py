@@ -112,9 +112,7 @@ JOINTS: dict[str, list[tuple[str, str, str, Callable[[Mapping[str, Any]], Axis]]
             "open",
             "close",
             "hinge",
-            lambda p: _rev(
-                (0, -_side(p), 0), (-_side(p) * p["size"][0] / 2, 0, -p["size"][2] / 2)
-            ),
+            lambda p: _rev((0, -_side(p), 0), (-_side(p) * p["size"][0] / 2, 0, -p["size"][2] / 2)),
         )
     ],
 }
