@@ -86,6 +86,22 @@ OBJECTS = [
     "CoffeeMachine",
     "TopLoadWasher",
     "ShowerDoor",
+    # rooms.eac
+    "ThumbTurn",
+    "SlideDimmer",
+    "WindowCrank",
+    "BlindCord",
+    "BifoldDoor",
+    "PocketDoor",
+    "BypassDoors",
+    "SashWindow",
+    "TiltTurnWindow",
+    "RollerDoor",
+    # storage.eac
+    "FlapBox",
+    "ToolBox",
+    "Suitcase",
+    "KnobWardrobeDoor",
 ]
 WRITTEN = PARTS + OBJECTS
 PANDA_MAX_WIDTH = 0.080
