@@ -209,7 +209,7 @@ def descend(
         largest = float(np.abs(step).max())
         if largest > opts.trust_region:  # far from the goal the linearization is poor
             step *= opts.trust_region / largest
-        trial = np.clip(x + step, lo, hi)
+        trial = np.minimum(np.maximum(x + step, lo), hi)
         t_err, t_jac, t_score = problem.linearize(trial)
         t_cost = float(t_err @ t_err)
         if t_cost < cost:

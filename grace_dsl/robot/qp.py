@@ -55,7 +55,7 @@ def active_set(
         mu = -(p @ x + c)
         mu[free] = 0.0
         new_lo, new_hi = mu + (x - lo) < 0.0, mu + (x - hi) > 0.0
-        if np.array_equal(new_lo, at_lo) and np.array_equal(new_hi, at_hi):
+        if not ((new_lo ^ at_lo).any() or (new_hi ^ at_hi).any()):
             return x
         at_lo, at_hi = new_lo, new_hi & ~new_lo
     return None
