@@ -144,18 +144,18 @@ def solve_grasp_ik(
 
     Starts from ``q0`` (default ``robot.home``: a posture with room to move, which the action
     that follows needs) and the grasp's default free parameters, restarts from the seed bank's
-    configurations whose gripper lies nearest the default grasp (``options.bank_seeds``), then
-    from seeded random joints and free parameters. With a collision ``scene`` (built
-    for the same base and instance), a solution whose arm or palm touches anything is rejected
-    and the search goes on; the fingers may touch the object. Failures are reasons, never
-    exceptions: ``unreachable``, ``collision``, ``time_limit``.
+    configurations whose gripper lies nearest the default grasp (``options.bank_seeds + 1``, the
+    ones pose IK would try), then from seeded random joints and free parameters. With a
+    collision ``scene`` (built for the same base and instance), a solution whose arm or palm
+    touches anything is rejected and the search goes on; the fingers may touch the object.
+    Failures are reasons, never exceptions: ``unreachable``, ``collision``, ``time_limit``.
     """
     opts = options or IKOptions()
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     problem = _GraspProblem(robot, Kinematics.of(inst), grasp, np.linalg.inv(base_m), opts)
     start = time.perf_counter()
     default = problem.base_inv @ problem.world_pose(problem.start(robot.home)[problem.n :])
-    near = list(seed_bank(robot).nearest(default, opts.bank_seeds))
+    near = list(seed_bank(robot).nearest(default, opts.bank_seeds + 1))  # as many as pose IK
     x = problem.start(robot.home if q0 is None else robot.check_q(q0))
     rng = np.random.default_rng(seed)
 
