@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -53,15 +54,16 @@ def run(draws: int, seed: int, only: list[str] | None, quiet: bool) -> dict:
         for name in names:
             rng = np.random.default_rng([seed, len(name), sum(map(ord, name))])
             fixed = manifold = only_manifold = 0
-            seconds = []
+            seconds, cpu = [], []
             for _ in range(draws):
                 inst = _instance(lib[name], rng, draw_params, placement)
-                start = time.perf_counter()
+                start, clock = time.perf_counter(), time.process_time()
                 hit_m = any(
                     eac.solve_grasp_ik(robot, inst, g, options=opts).success
                     for g in inst.concept.grasps
                 )
                 seconds.append(time.perf_counter() - start)
+                cpu.append(time.process_time() - clock)
                 hit_f = any(
                     eac.solve_ik(robot, inst.grasp(g), options=opts).success
                     for g in inst.concept.grasps
@@ -76,6 +78,7 @@ def run(draws: int, seed: int, only: list[str] | None, quiet: bool) -> dict:
                 "manifold": manifold,
                 "only_manifold": only_manifold,
                 "median_ms": float(np.median(seconds) * 1e3),
+                "cpu_median_ms": float(np.median(cpu) * 1e3),
             }
     total = draws * len(names)
     return {
@@ -86,6 +89,8 @@ def run(draws: int, seed: int, only: list[str] | None, quiet: bool) -> dict:
         "only_manifold": sum(r["only_manifold"] for r in rows.values()),
         "instances": total,
         "median_ms_per_instance": float(np.median([r["median_ms"] for r in rows.values()])),
+        "cpu_median_ms_per_instance": float(np.median([r["cpu_median_ms"] for r in rows.values()])),
+        "load_average": os.getloadavg()[0],
         "rows": rows,
     }
 
@@ -122,7 +127,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{report['instances']} instances of {report['concepts']} concepts: some grasp reached "
             f"by fixed-grasp IK {report['fixed'] * 100:.1f}%, by grasp-manifold IK "
             f"{report['manifold'] * 100:.1f}% ({report['only_manifold']} only by the manifold); "
-            f"median {report['median_ms_per_instance']:.1f} ms per instance (manifold, all grasps)"
+            f"median {report['median_ms_per_instance']:.1f} ms per instance (manifold, all grasps; "
+            f"CPU {report['cpu_median_ms_per_instance']:.1f} ms; load {report['load_average']:.1f})"
         )
     out = args.out or (None if args.smoke else RESULTS)
     if out is not None:

@@ -27,6 +27,7 @@ import pinocchio as pin
 from grace_dsl.robot.collision import CollisionScene
 from grace_dsl.robot.ik import IKOptions, IKResult, Search, measure, search, thread_qp
 from grace_dsl.robot.model import Robot, rigid_pose
+from grace_dsl.robot.seeds import seed_bank
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.symmetry import minimal_spin
 
@@ -141,20 +142,28 @@ def solve_grasp_ik(
     """Joints and free grasp parameters that put the gripper on grasp family ``grasp`` of
     ``inst``, the robot's base at world pose ``base`` (default the world origin).
 
-    Starts from ``q0`` (default ``robot.home``) and the grasp's default free parameters, then
-    restarts from seeded random joints and free parameters. With a collision ``scene`` (built
-    for the same base and instance), a solution whose arm or palm touches anything is rejected
-    and the search goes on; the fingers may touch the object. Failures are reasons, never
-    exceptions: ``unreachable``, ``collision``, ``time_limit``.
+    Starts from ``q0`` (default ``robot.home``: a posture with room to move, which the action
+    that follows needs) and the grasp's default free parameters, restarts from the seed bank's
+    configurations whose gripper lies nearest the default grasp (``options.bank_seeds + 1``, the
+    ones pose IK would try), then from seeded random joints and free parameters. With a
+    collision ``scene`` (built for the same base and instance), a solution whose arm or palm
+    touches anything is rejected and the search goes on; the fingers may touch the object.
+    Failures are reasons, never exceptions: ``unreachable``, ``collision``, ``time_limit``.
     """
     opts = options or IKOptions()
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     problem = _GraspProblem(robot, Kinematics.of(inst), grasp, np.linalg.inv(base_m), opts)
-    q_start = robot.home if q0 is None else robot.check_q(q0)
-    x = problem.start(q_start)
-    rng, start = np.random.default_rng(seed), time.perf_counter()
+    start = time.perf_counter()
+    default = problem.base_inv @ problem.world_pose(problem.start(robot.home)[problem.n :])
+    near = list(seed_bank(robot).nearest(default, opts.bank_seeds + 1))  # as many as pose IK
+    x = problem.start(robot.home if q0 is None else robot.check_q(q0))
+    rng = np.random.default_rng(seed)
+
+    def restart() -> FloatArray:
+        return problem.start(near.pop(0)) if near else problem.random(rng)
+
     clear = None if scene is None else (lambda x: not scene.collides(x[: robot.nq]))
-    found = search(problem, x, opts, thread_qp(robot, len(x)), lambda: problem.random(rng), clear)
+    found = search(problem, x, opts, thread_qp(robot, len(x)), restart, clear)
     return _result(problem, found, start)
 
 

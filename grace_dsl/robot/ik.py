@@ -1,4 +1,4 @@
-"""Inverse kinematics of a fixed target pose: a sequential QP on OSQP with seeded restarts.
+"""Inverse kinematics of a fixed target pose: a sequential box QP with restarts from a seed bank.
 
 Each step linearizes the SE(3) error of the gripper frame and solves, for the joint step ``dq``,
 
@@ -6,11 +6,14 @@ Each step linearizes the SE(3) error of the gripper frame and solves, for the jo
 
 where ``e = log(T(q)⁻¹ T*)`` is the error twist in the gripper frame, ``J_e = −Jlog(e) J(q)`` its
 Jacobian (Pinocchio's frame Jacobian in the gripper frame, through the derivative of the SE(3)
-log) and ``λ = λ₀ + μ‖e‖²`` a Levenberg–Marquardt damping that vanishes at the solution. When the
-unconstrained minimizer lies inside the joint limits it *is* the QP's solution and is taken in
-closed form; otherwise OSQP solves the box QP, warm-started from the previous step. A step longer
-than the trust region ``δ`` (on any joint) is scaled down to it, keeping its direction. A solve
-that stalls restarts from a seeded random configuration.
+log) and ``λ = (λ₀ + μ‖e‖²) β`` a Levenberg–Marquardt damping that vanishes at the solution.
+When the unconstrained minimizer lies inside the joint limits it *is* the QP's solution and is
+taken in closed form; otherwise the box QP is solved exactly by an active-set iteration, or by
+OSQP when that does not settle (:mod:`grace_dsl.robot.qp`). A step longer than the trust region
+``δ`` (on any joint) is scaled down to it, keeping its direction. A step that does not lower
+``‖e‖²`` is refused and ``β`` raised tenfold (an accepted one divides it by 3, down to 1). An
+attempt that stalls restarts from the next configuration of the robot's seed bank whose gripper
+lies nearest the target (:mod:`grace_dsl.robot.seeds`), then from seeded random ones.
 """
 
 from __future__ import annotations
@@ -25,12 +28,14 @@ import numpy as np
 import pinocchio as pin
 
 from grace_dsl.robot.model import Robot, rigid_pose
-from grace_dsl.robot.qp import BoxQP
+from grace_dsl.robot.qp import BoxQP, active_set, spd_solve
+from grace_dsl.robot.seeds import seed_bank
 
 FloatArray = np.ndarray
 
 POSITION_TOLERANCE = 1e-3  # metres
 ROTATION_TOLERANCE = math.radians(1.0)
+BOOST_UP, BOOST_DOWN = 10.0, 3.0  # LM damping after a refused / an accepted step
 REASONS = ("converged", "unreachable", "time_limit")
 
 
@@ -66,6 +71,7 @@ class IKOptions:
     trust_region: float = 0.4  # radians per joint per step
     damping: float = 1e-6  # λ₀
     damping_error: float = 1e-2  # μ
+    bank_seeds: int = 8  # restarts from the seed bank's nearest entries before random ones
 
 
 def solve_ik(
@@ -78,17 +84,28 @@ def solve_ik(
 ) -> IKResult:
     """Joint values that put ``robot``'s gripper frame at the 4x4 world pose ``target``.
 
-    Starts from ``q0`` (default ``robot.home``); when an attempt stalls it restarts from a random
-    configuration drawn with ``seed``. Never raises for an unreachable target: the result says
-    ``success=False`` with the reason and the closest configuration found.
+    Starts from ``q0``, by default from the seed bank's configuration whose gripper lies nearest
+    the target; when an attempt stalls it restarts from the bank's next nearest ones
+    (``options.bank_seeds``), then from random configurations drawn with ``seed``. Never raises
+    for an unreachable target: the result says ``success=False`` with the reason and the closest
+    configuration found.
     """
     opts = options or IKOptions()
     goal = pin.SE3(rigid_pose(target, "the IK target"))
     start = time.perf_counter()
-    rng = np.random.default_rng(seed)
-    q = robot.home.copy() if q0 is None else robot.check_q(q0).copy()
+    near = list(seed_bank(robot).nearest(goal.homogeneous, opts.bank_seeds + 1))
+    q = near.pop(0).copy() if q0 is None else robot.check_q(q0).copy()
+    rng: list[np.random.Generator] = []  # drawn from only once the bank's seeds are spent
+
+    def restart() -> FloatArray:
+        if near:
+            return near.pop(0).copy()
+        if not rng:
+            rng.append(np.random.default_rng(seed))
+        return robot.random_q(rng[0])
+
     problem = _PoseProblem(robot, goal, opts)
-    found = search(problem, q, opts, thread_qp(robot, robot.nq), lambda: robot.random_q(rng))
+    found = search(problem, q, opts, thread_qp(robot, robot.nq), restart)
     return _result(robot, goal, found, start, opts)
 
 
@@ -162,38 +179,62 @@ class _PoseProblem:
         jac = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
         diff = now.actInv(self.goal)
         err = pin.log6(diff).vector
-        pos = float(np.linalg.norm(self.goal.translation - now.translation))
-        score = max(pos / self.opts.tol_pos, float(np.linalg.norm(err[3:])) / self.opts.tol_rot)
+        offset, turn = diff.translation, err[3:]  # ‖offset‖: the distance, in any axes
+        score = max(
+            math.sqrt(offset @ offset) / self.opts.tol_pos,
+            math.sqrt(turn @ turn) / self.opts.tol_rot,
+        )
         return err, -pin.Jlog6(diff.inverse()) @ jac, score
 
 
 def descend(
     problem: Linearized, x: FloatArray, opts: IKOptions, qp: BoxQP
 ) -> tuple[FloatArray, int, float]:
-    """Damped Gauss-Newton QP steps from ``x`` until within 1/10 of the tolerance, stalled or out
-    of iterations; returns (x, iterations, score)."""
+    """Levenberg-Marquardt QP steps from ``x`` until within 1/10 of the tolerance, stalled or out
+    of iterations; returns (x, iterations, score). A step that does not lower ``‖e‖²`` is
+    refused and the damping raised tenfold; an accepted one lowers it again."""
     lo, hi = problem.lower, problem.upper
-    eye = np.eye(len(x))
+    diagonal = np.arange(len(x))
     err, j_err, score = problem.linearize(x)
     if score <= 0.1:
         return x, 0, score
+    cost = float(err @ err)
+    boost = 1.0
     history = [score]
     for it in range(1, opts.max_iterations + 1):
-        lam = opts.damping + opts.damping_error * float(err @ err)
-        p = j_err.T @ j_err + lam * eye
+        p = j_err.T @ j_err
+        p[diagonal, diagonal] += (opts.damping + opts.damping_error * cost) * boost
         c = j_err.T @ err
-        step = -np.linalg.solve(p, c)
-        if not (np.all(x + step >= lo) and np.all(x + step <= hi)):
-            step = qp.solve(p, c, lo - x, hi - x)  # a limit binds
-        largest = float(np.max(np.abs(step)))
+        step = _box_step(p, c, lo - x, hi - x, qp)
+        largest = float(np.abs(step).max())
         if largest > opts.trust_region:  # far from the goal the linearization is poor
             step *= opts.trust_region / largest
-        x = np.clip(x + step, lo, hi)
-        err, j_err, score = problem.linearize(x)
+        trial = np.minimum(np.maximum(x + step, lo), hi)
+        t_err, t_jac, t_score = problem.linearize(trial)
+        t_cost = float(t_err @ t_err)
+        if t_cost < cost:
+            x, err, j_err, score, cost = trial, t_err, t_jac, t_score, t_cost
+            boost = max(1.0, boost / BOOST_DOWN)
+        else:
+            boost *= BOOST_UP
         history.append(score)
         if score <= 0.1 or _stalled(history, opts.stall_window):
             return x, it, score
     return x, opts.max_iterations, score
+
+
+def _box_step(
+    p: FloatArray, c: FloatArray, lo: FloatArray, hi: FloatArray, qp: BoxQP
+) -> FloatArray:
+    """The QP's minimizer: in closed form when it lies inside the box (no limit binds), else by
+    the exact active-set iteration, else (its sets did not settle) by OSQP."""
+    step = spd_solve(p, -c)
+    if step is None:
+        return qp.solve(p, c, lo, hi)
+    if not ((step < lo).any() or (step > hi).any()):
+        return step
+    exact = active_set(p, c, lo, hi, step)
+    return qp.solve(p, c, lo, hi) if exact is None else exact
 
 
 def thread_qp(robot: Robot, n: int) -> BoxQP:
