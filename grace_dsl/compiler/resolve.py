@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from grace_dsl.compiler.expand import expand
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import KEYWORDS, parse
@@ -187,7 +188,11 @@ def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
         return SourceFile(str(path), "", None)
     result = parse(text, str(path))
     diags += result.diagnostics
-    return SourceFile(str(path), text, result.module, result.dropped)
+    if result.module is None:
+        return SourceFile(str(path), text, None, result.dropped)
+    module, more, quiet = expand(result.module)
+    diags += more
+    return SourceFile(str(path), text, module, result.dropped | quiet)
 
 
 def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Path | None:
