@@ -47,7 +47,8 @@ def expand(module: ast.Module) -> tuple[ast.Module, list[Diagnostic], frozenset[
         concepts.append(x.run())
         diags += x.diags
         quiet |= x.quiet
-    return replace(module, concepts=tuple(concepts)), diags, frozenset(quiet)
+    # the copies of a loop share their source: each problem there is reported once
+    return replace(module, concepts=tuple(concepts)), list(dict.fromkeys(diags)), frozenset(quiet)
 
 
 def split_indexed(name: str) -> tuple[str, tuple[int, ...]] | None:
@@ -124,7 +125,10 @@ class _Expander:
         self.params = {m.name: m for m in c.members if isinstance(m, ast.Param)}
         self.copies = 0
         self.in_loop: set[str] = set()  # names declared by a loop body
-        self.refs: list[tuple[str, ast.Span]] = []  # indexed names read, to check their range
+        # indexed names read, with the declaration reading them, to check their range
+        self.refs: list[tuple[str, ast.Span, str]] = []
+        self.current = ""  # the declaration being unrolled
+        self.bad: set[str] = set()  # declarations with a bad index: dropped after reporting
 
     def err(self, code: str, msg: str, span: ast.Span, hint: str | None = None) -> None:
         self.diags.append(error(code, msg, span, hint))
@@ -134,6 +138,7 @@ class _Expander:
         members = self._unique(members)
         members = [self._using_variants(m) for m in members]
         self._check_ranges(members)
+        members = self._drop_bad(members)
         masks = tuple(sorted(self.masks.items()))
         variants = tuple(sorted(self.variants.items()))
         return replace(self.c, members=tuple(members), masks=masks, variants=variants)
@@ -251,6 +256,7 @@ class _Expander:
         if isinstance(m, ast.Param):
             return [m]
         name = self._name(m.name, m.index, env, m.name_span)
+        self.current = name
         if cond:
             self.masks[name] = cond
         if isinstance(m, ast.Link):
@@ -420,7 +426,7 @@ class _Expander:
     def _ref(self, template: str, index: ast.Indices, env: dict[str, int], span: ast.Span) -> str:
         name = self._name(template, index, env, span)
         if index:
-            self.refs.append((name.split(".")[0], span))
+            self.refs.append((name.split(".")[0], span, self.current))
         return name
 
     def _x(self, e: ast.Expr, env: dict[str, int]) -> ast.Expr:
@@ -443,7 +449,7 @@ class _Expander:
                 )
             elif isinstance(obj, ast.Name):
                 name = f"{obj.id}[{k}]"
-                self.refs.append((name, e.span))
+                self.refs.append((name, e.span, self.current))
                 return ast.Name(name, e.span)
             elif isinstance(obj, ast.Member):
                 return ast.Member(obj.obj, f"{obj.field}[{k}]", e.span)
@@ -454,7 +460,7 @@ class _Expander:
                     e.span,
                     "index a name: `drawer[i]`, `drawer[i].width`",
                 )
-            self.quiet.add("[]")
+            self.bad.add(self.current)
             return ast.Name("[]", e.span)
         kids = ast._children(e)
         if not kids:
@@ -518,7 +524,7 @@ class _Expander:
             if split is not None:
                 arrays.setdefault(split[0], set()).add(split[1])
         reported: set[tuple[str, ast.Span]] = set()
-        for name, span in self.refs:
+        for name, span, owner in self.refs:
             if name in declared or (name, span) in reported:
                 continue
             split = split_indexed(name)
@@ -528,6 +534,7 @@ class _Expander:
             base, _ = split
             if base not in arrays:
                 if base in declared:
+                    self.bad.add(owner)
                     self.err(
                         "E125",
                         f"`{base}` is not repeated: it takes no index",
@@ -535,13 +542,28 @@ class _Expander:
                         f"write `{base}`",
                     )
                 continue  # an unknown name: resolve and check report it
-            self.quiet.add(name)
+            self.bad.add(owner)
             self.err(
                 "E122",
                 f"`{name}` is out of range: `{base}` has indices {_ranges(arrays[base])}",
                 span,
                 "indices start at the loop's start and stop before its bound",
             )
+
+
+    def _drop_bad(self, members: list[Any]) -> list[Any]:
+        """Declarations with a bad index go, like a syntax error's: no follow-on errors."""
+        if not self.bad:
+            return members
+        self.quiet |= self.bad
+        out = []
+        for m in members:
+            if getattr(m, "name", None) in self.bad:
+                continue
+            if isinstance(m, ast.Link):
+                m = replace(m, members=tuple(x for x in m.members if x.name not in self.bad))
+            out.append(m)
+        return out
 
 
 def _ranges(indices: set[tuple[int, ...]]) -> str:

@@ -132,6 +132,11 @@ class Lowered:
     shapes: list[ShapeInfo] = field(default_factory=list)
     requires: list[RequireInfo] = field(default_factory=list)
     parts: dict[str, str] = field(default_factory=dict)  # qualified part -> concept
+    # repeated and variant members (``compiler/expand.py``), qualified: when each exists, as
+    # [(count parameter, k): count > k | (choice parameter, option): choice == option]
+    masks: dict[str, list[tuple[str, int | str]]] = field(default_factory=dict)
+    # variant part -> (its choice parameter, {option: the part that option places})
+    variants: dict[str, tuple[str, dict[str, str]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -142,6 +147,7 @@ class _Scope:
     prefix: str
     ev: Evaluator
     parts: dict[str, _Scope]
+    lifted: frozenset[str] = frozenset()  # its parameters lifted into the flat model
 
 
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
@@ -204,12 +210,14 @@ class _Instance:
         for m in parts:
             sub = self.checked.concepts[m.concept]
             scopes[m.name] = self._scope(sub, f"{prefix}{m.name}.", bound[m.name])
-        return _Scope(cc, prefix, ev, scopes)
+        lifted = frozenset(p.name for p in decl.members if isinstance(p, ast.Param)) - set(bindings)
+        return _Scope(cc, prefix, ev, scopes, lifted)
 
     def _emit(self, scope: _Scope, host_pose: Any, host_link: str) -> None:
         """Links, joints, shapes, grasps, parts, actions and requirements of a scope."""
         cc, prefix, ev = scope.cc, scope.prefix, scope.ev
         decl = cc.decl
+        self._masks(scope)
         # links and joints
         link_of = {BASE_LINK: host_link}
         for link in (m for m in decl.members if isinstance(m, ast.Link)):
@@ -234,6 +242,20 @@ class _Instance:
                 self._action(m, prefix, ev, host_pose)
             elif isinstance(m, ast.Require):
                 self._require(m, prefix, ev)
+
+    def _masks(self, scope: _Scope) -> None:
+        """A part's masks and variants, qualified; a mask on a count or choice its host binds
+        is dropped (the member then always exists)."""
+        prefix, lifted = scope.prefix, scope.lifted
+        for name, cond in scope.cc.decl.masks:
+            if all(param in lifted for param, _ in cond):
+                self.out.masks[prefix + name] = [(prefix + p, v) for p, v in cond]
+        for name, (param, options) in scope.cc.decl.variants:
+            if param in lifted:
+                self.out.variants[prefix + name] = (
+                    prefix + param,
+                    {value: prefix + part for value, part in options},
+                )
 
     # -- parameters
     def _lift(self, cc: CheckedConcept, p: ast.Param, prefix: str) -> Any:

@@ -13,7 +13,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from grace_dsl.compiler.expand import expand
+from grace_dsl.compiler.expand import VARIANT_SEP, expand
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import KEYWORDS, parse
@@ -398,7 +398,9 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     )
                 )
             for g in m.using:
-                if not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
+                if not grasp_exists(prog, c, g) and VARIANT_SEP in g.split(".")[0]:
+                    diags += _variant_lacks(prog, c, m, g)
+                elif not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
                     diags.append(
                         error(
                             "E110",
@@ -408,7 +410,39 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                         )
                     )
     diags += _check_link_tree(c, links, dropped)
-    return diags
+    return _once_per_span(diags)
+
+
+def _once_per_span(diags: list[Diagnostic]) -> list[Diagnostic]:
+    """The copies a ``for`` loop made share their source: report each problem there once."""
+    seen: set[tuple[str, ast.Span, str]] = set()
+    out = []
+    for d in diags:
+        key = (d.code, d.span, d.message if d.code != "E127" else "")
+        if key not in seen:
+            seen.add(key)
+            out.append(d)
+    return out
+
+
+def _variant_lacks(prog: Program, c: ast.Concept, a: ast.Action, g: str) -> list[Diagnostic]:
+    """An option of a variant part without a grasp the host's action uses (E127)."""
+    head, _, rest = g.partition(".")
+    part = next((m for m in flat_members(c) if isinstance(m, ast.Part) and m.name == head), None)
+    if part is None or part.variant is None or part.concept not in prog.concepts:
+        return []
+    name, option = part.variant
+    has = sorted(set(all_grasps(prog, prog.concept(part.concept))))
+    return [
+        error(
+            "E127",
+            f'option "{option}" of part `{name}` ({part.concept}) has no grasp `{rest}`, which '
+            f"action `{a.name}` uses",
+            part.concept_span,
+            f"{part.concept} has " + (", ".join(f"`{x}`" for x in has) or "no grasps")
+            + f"; every option must provide `{rest}`",
+        )
+    ]
 
 
 def all_grasps(prog: Program, c: ast.Concept) -> list[str]:

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grace_dsl.runtime.masks import present
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
 from grace_dsl.runtime.sampling import spread
@@ -75,8 +76,8 @@ def rank(
 
 def candidates(inst: Instance, action: ActionSpec) -> list[str]:
     """The grasps an action names with ``using``; else every grasp on the link it moves."""
-    if action.using:
-        return list(action.using)
+    if action.using:  # the options of a variant part the instance has not chosen drop out
+        return [g for g in action.using if present(inst.concept.entry, inst.params, g)]
     if action.joint is None:
         return list(inst.concept.grasps)
     child = inst.concept.joints[action.joint].child
