@@ -525,16 +525,17 @@ class _Expander:
                 arrays.setdefault(split[0], set()).add(split[1])
         reported: set[tuple[str, ast.Span]] = set()
         for name, span, owner in self.refs:
-            if name in declared or (name, span) in reported:
-                continue
             split = split_indexed(name)
-            if split is None:
+            if name in declared or split is None:
+                continue
+            base, _ = split
+            if base in arrays or base in declared:
+                self.bad.add(owner)
+            if (name, span) in reported:
                 continue
             reported.add((name, span))
-            base, _ = split
             if base not in arrays:
                 if base in declared:
-                    self.bad.add(owner)
                     self.err(
                         "E125",
                         f"`{base}` is not repeated: it takes no index",
@@ -542,7 +543,6 @@ class _Expander:
                         f"write `{base}`",
                     )
                 continue  # an unknown name: resolve and check report it
-            self.bad.add(owner)
             self.err(
                 "E122",
                 f"`{name}` is out of range: `{base}` has indices {_ranges(arrays[base])}",
