@@ -118,3 +118,21 @@ def _valid(
     if not have:
         return f"; it has no {base} at all"
     return f"; its {base} has indices " + ", ".join(have)
+
+
+def repeats(entry: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """Every repeated member by its base name (``drawer``): its indices, and the count
+    parameters that decide which copies exist (what a prompt shows instead of the copies)."""
+    masks = entry.get("masks") or {}
+    out: dict[str, dict[str, Any]] = {}
+    for name in _members(entry):
+        m = _INDEXED.match(name)
+        if m is None or "@" in name.rsplit(".", 1)[-1]:
+            continue
+        rep = out.setdefault(m.group(1), {"indices": [], "counts": []})
+        if m.group(2) not in rep["indices"]:
+            rep["indices"].append(m.group(2))
+        for param, value in masks.get(name, ()):
+            if not isinstance(value, str) and param not in rep["counts"]:
+                rep["counts"].append(param)
+    return out
