@@ -498,7 +498,8 @@ def _concept_md(c: Mapping[str, Any]) -> list[str]:
         for base, r in c["repeats"].items():
             counts = " and ".join(f"`{n}`" for n in r["counts"])
             out.append(
-                f"- `{base}`: indices " + ", ".join(r["indices"])
+                f"- `{base}`: indices "
+                + ", ".join(r["indices"])
                 + (f", as many as {counts} says" if counts else "")
             )
         out.append("")
@@ -506,8 +507,10 @@ def _concept_md(c: Mapping[str, Any]) -> list[str]:
         out += ["Variant parts (the choice parameter picks the part's concept):", ""]
         for name, v in c["variants"].items():
             options = ", ".join(f'"{o}" → {k} (`{v["parts"][o]}`)' for o, k in v["options"].items())
-            out.append(f"- `{name}` by `{v['param']}`: {options}; `{name}.g` is the chosen "
-                       "option's grasp g")
+            out.append(
+                f"- `{name}` by `{v['param']}`: {options}; `{name}.g` is the chosen "
+                "option's grasp g"
+            )
         out.append("")
     if c["parts"]:
         out += ["Parts:", ""]

@@ -369,7 +369,10 @@ class _Expander:
             alt = f"{name}{VARIANT_SEP}{v.value}"
             self.masks[alt] = (*cond, (p.name, v.value))
             out.append(replace(part(v, alt), variant=(name, v.value)))
-        self.variants[name] = (p.name, tuple((v.value, f"{name}{VARIANT_SEP}{v.value}") for v in m.variants))
+        self.variants[name] = (
+            p.name,
+            tuple((v.value, f"{name}{VARIANT_SEP}{v.value}") for v in m.variants),
+        )
         return out
 
     def _fold(self, e: ast.Expr) -> ast.Expr:
@@ -439,8 +442,8 @@ class _Expander:
             return e
         if isinstance(e, ast.Index):
             obj = self._x(e.obj, env)
-            k = const_int(self._x(e.index, env), env)
-            if k is None:
+            at = const_int(self._x(e.index, env), env)
+            if at is None:
                 self.err(
                     "E125",
                     "an index is an integer: a constant or arithmetic on loop variables",
@@ -448,11 +451,11 @@ class _Expander:
                     "write `drawer[i]`, `drawer[i + 1]` or `drawer[2]`",
                 )
             elif isinstance(obj, ast.Name):
-                name = f"{obj.id}[{k}]"
+                name = f"{obj.id}[{at}]"
                 self.refs.append((name, e.span, self.current))
                 return ast.Name(name, e.span)
             elif isinstance(obj, ast.Member):
-                return ast.Member(obj.obj, f"{obj.field}[{k}]", e.span)
+                return ast.Member(obj.obj, f"{obj.field}[{at}]", e.span)
             else:
                 self.err(
                     "E125",
@@ -550,7 +553,6 @@ class _Expander:
                 "indices start at the loop's start and stop before its bound",
             )
 
-
     def _drop_bad(self, members: list[Any]) -> list[Any]:
         """Declarations with a bad index go, like a syntax error's: no follow-on errors."""
         if not self.bad:
@@ -561,7 +563,8 @@ class _Expander:
             if getattr(m, "name", None) in self.bad:
                 continue
             if isinstance(m, ast.Link):
-                m = replace(m, members=tuple(x for x in m.members if x.name not in self.bad))
+                kept = tuple(x for x in m.members if getattr(x, "name", None) not in self.bad)
+                m = replace(m, members=kept)
             out.append(m)
         return out
 

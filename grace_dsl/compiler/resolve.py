@@ -338,7 +338,7 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     "its geometry comes from grace_dsl.geometry",
                 )
             )
-        if isinstance(m, ast.Require):
+        if isinstance(m, (ast.Require, ast.For)):  # no `for` is left after unrolling
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
@@ -439,7 +439,8 @@ def _variant_lacks(prog: Program, c: ast.Concept, a: ast.Action, g: str) -> list
             f'option "{option}" of part `{name}` ({part.concept}) has no grasp `{rest}`, which '
             f"action `{a.name}` uses",
             part.concept_span,
-            f"{part.concept} has " + (", ".join(f"`{x}`" for x in has) or "no grasps")
+            f"{part.concept} has "
+            + (", ".join(f"`{x}`" for x in has) or "no grasps")
             + f"; every option must provide `{rest}`",
         )
     ]

@@ -273,7 +273,7 @@ class _Builder(Transformer):
         expressions are kept aside (``_ix``)."""
         first, *indices = c
         if not indices:
-            return first  # type: ignore[no-any-return]
+            return first
         last = self._end(indices[-1])
         tok = Token(
             "NAME",

@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.runtime.masks import present
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
+from grace_dsl.runtime.masks import present
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
 from grace_dsl.runtime.symmetry import spin_about

@@ -50,9 +50,7 @@ def present(entry: Mapping[str, Any], params: Mapping[str, Any], name: str) -> b
     """Whether the compiled member ``name`` exists at these parameter values."""
     masks = entry.get("masks") or {}
     parts = name.split(".")
-    return all(
-        _absent(masks, params, ".".join(parts[: i + 1])) is None for i in range(len(parts))
-    )
+    return all(_absent(masks, params, ".".join(parts[: i + 1])) is None for i in range(len(parts)))
 
 
 def count(entry: Mapping[str, Any], params: Mapping[str, Any], base: str) -> int:
@@ -66,9 +64,9 @@ def indices(entry: Mapping[str, Any], params: Mapping[str, Any], base: str) -> l
     found: list[str] = []
     for name in _members(entry):
         m = _INDEXED.match(name)
-        if m is not None and m.group(1) == base and _absent(masks, params, name) is None:
-            if m.group(2) not in found:
-                found.append(m.group(2))
+        present_copy = m is not None and m.group(1) == base and _absent(masks, params, name) is None
+        if present_copy and m is not None and m.group(2) not in found:
+            found.append(m.group(2))
     if not found and not any(
         (m := _INDEXED.match(n)) is not None and m.group(1) == base for n in _members(entry)
     ):

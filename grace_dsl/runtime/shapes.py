@@ -116,9 +116,7 @@ class ShapeTree:
         entry = inst.concept.entry
         params = inst.params if has_masks(entry) else {}
         self.shapes: dict[str, Mapping[str, Any]] = {  # copies the instance lacks drop out
-            s["name"]: s
-            for s in entry["shapes"]
-            if not params or present(entry, params, s["name"])
+            s["name"]: s for s in entry["shapes"] if not params or present(entry, params, s["name"])
         }
         self.q0 = np.zeros_like(inst.q)
         self._rest = Kinematics.of(inst).in_concept_frame()

@@ -190,7 +190,7 @@ def _expanded(text: str) -> tuple[ast.Concept, list[Any]]:
 
 def test_constant_selector_picks_its_option() -> None:
     c, diags = _expanded(
-        "concept C { for i in 0..3 { part h[i] = match (if i == 0 then \"k\" else \"b\") "
+        'concept C { for i in 0..3 { part h[i] = match (if i == 0 then "k" else "b") '
         '{ "k" => K(), "b" => B() } } }'
     )
     assert diags == []

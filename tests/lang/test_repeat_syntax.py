@@ -68,7 +68,9 @@ def test_index_expression_and_variant_part() -> None:
 def test_the_example_is_formatted_and_keeps_comments() -> None:
     text = EXAMPLE.read_text(encoding="utf-8")
     assert format_source(text).text == text
-    commented = text.replace("    for i in 0..n {", "    // one drawer per i\n    for i in 0..n {  // top first")
+    commented = text.replace(
+        "    for i in 0..n {", "    // one drawer per i\n    for i in 0..n {  // top first"
+    )
     out = assert_guarantees(commented)
     assert "// one drawer per i" in out and "for i in 0..n {  // top first" in out
 
@@ -136,8 +138,11 @@ def member(draw: st.DrawFn, depth: int = 0) -> ast.Member_:
         options = draw(st.lists(st.sampled_from(["bar", "knob", "a b"]), min_size=1, max_size=3,
                                 unique=True))  # fmt: skip
         variants = tuple(
-            ast.Variant(o, "C" + str(k), draw(st.lists(st.builds(ast.Arg, st.just("x"), EXPRS),
-                                                        max_size=1).map(tuple)))  # fmt: skip
+            ast.Variant(
+                o,
+                "C" + str(k),
+                draw(st.lists(st.builds(ast.Arg, st.just("x"), EXPRS), max_size=1).map(tuple)),
+            )  # fmt: skip
             for k, o in enumerate(options)
         )
         at = draw(st.none() | indexed_expr())
