@@ -5,11 +5,12 @@ Run: ``.venv/bin/python bench/bench_repeat.py [--max-count 5] [--repeats 200] [-
 (n drawers, each with a bar or ring handle). *Masking* compiles it once, unrolled to the largest
 count, and the runtime hides the copies an instance lacks; *per count* compiles one concept for
 each count (the loop bound a constant), as if the count were fixed at build time. For both the
-script measures the cold build (wall and CPU seconds of a child process, the C compiler included; the imported
-standard library is built before the clock starts), the size of the
+script measures the cold build (wall and CPU seconds of a child process, the C compiler
+included; the imported standard library is built before the clock starts), the size of the
 compiled units (manifest ``unit.json``, serialized functions, native library) and the time an
 instance needs for what a robot asks of it: instantiate at count k, then every drawer's handle
-grasp and link pose (the best of ten batches). Writes bench/results/repeat.json. ``--smoke``: counts up to 2, CasADi's VM.
+grasp and link pose (the best of ten batches). Writes bench/results/repeat.json.
+``--smoke``: counts up to 2, CasADi's VM.
 """
 
 from __future__ import annotations
