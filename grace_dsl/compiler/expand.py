@@ -259,6 +259,10 @@ class _Expander:
         self.current = name
         if cond:
             self.masks[name] = cond
+        doc = m.doc
+        for var, k in env.items():  # `/// drawer {i}` says which copy it documents
+            doc = doc.replace("{" + var + "}", str(k))
+        m = replace(m, doc=doc) if doc != m.doc else m
         if isinstance(m, ast.Link):
             members = self._members(m.members, env, cond, depth)
             return [replace(m, name=name, index=(), members=tuple(members))]
