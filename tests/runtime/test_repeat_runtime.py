@@ -106,3 +106,24 @@ def test_mesh_and_export_hold_only_the_present_copies(stack: Any, tmp_path: Path
     for link in model.links:
         ET.fromstring(f"<x name='{link.name}'/>")  # a valid XML name
         assert all(c.isalnum() or c == "_" for c in link.name)
+
+
+def test_the_chest_tutorial_steps(tmp_path: Path) -> None:
+    """The values docs/language.md's chest tutorial shows (section 10, step 5)."""
+    example = Path(__file__).resolve().parents[2] / "docs" / "examples" / "chest_of_drawers.eac"
+    result = build([example], tmp_path / "cache", use_native=False)
+    assert result.ok, result.diagnostics
+    chest = Library(result.units, result)["ChestOfNDrawers"]
+    two = chest.instantiate(n=2)
+    assert (two.count("drawer"), two.indices("drawer")) == (2, ["[0]", "[1]"])
+    assert two.links == ("base", "drawer[0]", "drawer[1]")
+    np.testing.assert_allclose(two.grasp("handle[1].pull")[:3, 3], [0, -0.19, 0.29], atol=1e-12)
+    with pytest.raises(UnknownNameError, match=r"indices \[0\], \[1\]"):
+        two.grasp("handle[2].pull")
+    force = two.force("open[1]", grasp=two.grasp("handle[1].pull"))
+    np.testing.assert_allclose(force, [0, 0, 1], atol=1e-12)
+    four = chest.instantiate(n=4, handle_kind="ring")
+    np.testing.assert_allclose(four.grasp("handle[3].pull")[:3, 3], [0, -0.307, 0.266], atol=1e-12)
+    ((lo, hi),) = four.grasp_range("handle[3].pull").values()
+    assert (lo, hi) == pytest.approx((-0.698, 0.698), abs=1e-3)
+    assert [o.grasp for o in four.rank("open[0]")] == ["handle[0]@ring.pull"]
