@@ -486,8 +486,8 @@ class _Expander:
             return replace(e, items=tuple(new))
         if isinstance(e, ast.Member):
             return replace(e, obj=new[0])
-        if isinstance(e, ast.IfExpr):
-            return replace(e, cond=new[0], then=new[1], orelse=new[2])
+        if isinstance(e, ast.IfExpr):  # `if i == 0 then ...`: one branch per copy
+            return self._fold(replace(e, cond=new[0], then=new[1], orelse=new[2]))
         return e
 
     # ---- after unrolling ------------------------------------------------------------------------

@@ -148,6 +148,7 @@ class _Scope:
     ev: Evaluator
     parts: dict[str, _Scope]
     lifted: frozenset[str] = frozenset()  # its parameters lifted into the flat model
+    bound: dict[str, Any] = field(default_factory=dict)  # the values its host binds
 
 
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
@@ -211,7 +212,7 @@ class _Instance:
             sub = self.checked.concepts[m.concept]
             scopes[m.name] = self._scope(sub, f"{prefix}{m.name}.", bound[m.name])
         lifted = frozenset(p.name for p in decl.members if isinstance(p, ast.Param)) - set(bindings)
-        return _Scope(cc, prefix, ev, scopes, lifted)
+        return _Scope(cc, prefix, ev, scopes, lifted, bindings)
 
     def _emit(self, scope: _Scope, host_pose: Any, host_link: str) -> None:
         """Links, joints, shapes, grasps, parts, actions and requirements of a scope."""
@@ -244,16 +245,31 @@ class _Instance:
                 self._require(m, prefix, ev)
 
     def _masks(self, scope: _Scope) -> None:
-        """A part's masks and variants, qualified; a mask on a count or choice its host binds
-        is dropped (the member then always exists)."""
-        prefix, lifted = scope.prefix, scope.lifted
+        """A part's masks and variants, qualified: a condition on a lifted count or choice
+        names it; one its host binds to a constant is decided here (the copy always or never
+        exists: ``("", 0)``), and one bound to a host parameter names that parameter."""
+        prefix = scope.prefix
         for name, cond in scope.cc.decl.masks:
-            if all(param in lifted for param, _ in cond):
-                self.out.masks[prefix + name] = [(prefix + p, v) for p, v in cond]
+            out: list[tuple[str, int | str]] = []
+            for param, v in cond:
+                if param in scope.lifted:
+                    out.append((prefix + param, v))
+                    continue
+                value = scope.bound.get(param)
+                decided = _decide(value, v, scope.cc.param_types.get(param))
+                if decided is False:
+                    out = [("", 0)]
+                    break
+                host = _symbol_name(value)
+                if decided is None and host is not None:
+                    out.append((host, v))
+            if out:
+                self.out.masks[prefix + name] = out
         for name, (param, options) in scope.cc.decl.variants:
-            if param in lifted:
+            host = prefix + param if param in scope.lifted else _symbol_name(scope.bound.get(param))
+            if host is not None:
                 self.out.variants[prefix + name] = (
-                    prefix + param,
+                    host,
                     {value: prefix + part for value, part in options},
                 )
 
@@ -477,6 +493,41 @@ class _Instance:
                 tuple(dict.fromkeys(prefix + n for n in reads(r.cond))),
             )
         )
+
+
+def _decide(value: Any, v: int | str, t: Type | None) -> bool | None:
+    """Whether a mask's condition holds for a value its host binds, when that is a constant
+    (a count above k; a choice equal to the option), else None."""
+    if isinstance(value, str):
+        return value == v
+    number = _constant(value)
+    if number is None:
+        return None
+    if isinstance(v, str):
+        choices = t.choices if t is not None else ()
+        return v in choices and number == choices.index(v)
+    return number > v
+
+
+def _constant(value: Any) -> float | None:
+    if isinstance(value, (int, float)):
+        return float(value)
+    is_constant = getattr(value, "is_constant", None)  # CasADi SX
+    if callable(is_constant) and is_constant():
+        return float(value)
+    if getattr(value, "is_Number", False):  # SymPy
+        return float(value)
+    return None
+
+
+def _symbol_name(value: Any) -> str | None:
+    """The host parameter a bound value is, when it is one parameter's symbol."""
+    is_symbolic = getattr(value, "is_symbolic", None)  # CasADi SX
+    if callable(is_symbolic) and is_symbolic():
+        return str(value.name())
+    if getattr(value, "is_Symbol", False):  # SymPy
+        return str(value)
+    return None
 
 
 def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:

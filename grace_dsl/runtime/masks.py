@@ -89,6 +89,8 @@ def _members(entry: Mapping[str, Any]) -> list[str]:
 
 def _absent(masks: Mapping[str, Any], params: Mapping[str, Any], name: str) -> str | None:
     for param, value in masks.get(name, ()):
+        if not param:  # its host binds a count or a choice that leaves it out
+            return "the values its host binds"
         have = params.get(param)
         if isinstance(value, str):
             if have != value:

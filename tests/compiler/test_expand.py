@@ -243,3 +243,50 @@ def test_files_without_loops_are_untouched(tmp_path: Path) -> None:
 def test_diagnostics(body: str, code: str) -> None:
     _, diags = _expanded("concept C {\n" + body + "\n}")
     assert code in [d.code for d in diags], diags
+
+
+NESTED = """use primitives.{Cuboid}
+use handles.{StraightHandle, RingPull}
+
+concept Row {
+    param n : int in [1, 3] = 2
+    param kind : choice{"bar", "ring"} = "bar"
+    for i in 0..n {
+        link d[i] {
+            shape f[i] = Cuboid(size: (100mm, 100mm, 10mm)) at trans(i * 110mm, 0, 0)
+            part h[i] = match kind { "bar" => StraightHandle(), "ring" => RingPull() }
+        }
+        joint s[i] : prismatic(base -> d[i]) axis (0, 0, 1) range [0, 100mm]
+    }
+}
+
+concept Host {
+    param m : int in [1, 3] = 3
+    param style : choice{"bar", "ring"} = "ring"
+    part a = Row(n: 2, kind: "ring")
+    part b = Row()
+    part c = Row(n: m, kind: style)
+    for i in 0..2 {
+        part r[i] = Row(n: 1, kind: if i == 0 then "bar" else "ring") at trans(0, i * 200mm, 0)
+    }
+}
+"""
+
+
+def test_masks_of_parts_follow_what_the_host_binds(tmp_path: Path) -> None:
+    path = tmp_path / "nested.eac"
+    path.write_text(NESTED, encoding="utf-8")
+    _, checked, diags = front_end([path])
+    assert not has_errors(diags), diags
+    low = casadi_functions(checked, "Host").lowered
+    masks = low.masks
+    assert "a.d[1]" not in masks and masks["a.d[2]"] == [("", 0)]  # n: 2 decided here
+    assert masks["a.h[0]@bar"] == [("", 0)] and "a.h[0]@ring" not in masks
+    assert masks["b.d[2]"] == [("b.n", 2)]  # lifted: the part's own count
+    assert masks["b.h[1]@ring"] == [("b.n", 1), ("b.kind", "ring")]
+    assert masks["c.d[2]"] == [("m", 2)]  # bound to the host's count
+    assert masks["c.h[0]@bar"] == [("style", "bar")]
+    assert low.variants["c.h[0]"] == ("style", {"bar": "c.h[0]@bar", "ring": "c.h[0]@ring"})
+    # a per-copy choice, an expression of the loop variable: bar for r[0], ring for r[1]
+    assert masks["r[0].h[0]@ring"] == [("", 0)] and "r[0].h[0]@bar" not in masks
+    assert masks["r[1].h[0]@bar"] == [("", 0)] and "r[1].h[0]@ring" not in masks
