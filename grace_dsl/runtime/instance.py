@@ -150,23 +150,31 @@ class Instance:
         entry = self.concept.entry
         if not masks.has_masks(entry):
             return names
-        params = self.params
+        params = self._mask_params()
         return tuple(n for n in names if masks.present(entry, params, n))
 
     def count(self, name: str) -> int:
         """How many copies of a repeated member (``drawer`` of ``for i in 0..n``) it has."""
-        return masks.count(self.concept.entry, self.params, name)
+        return masks.count(self.concept.entry, self._mask_params(), name)
 
     def indices(self, name: str) -> list[str]:
         """The indices of the copies of a repeated member it has: ``["[0]", "[1]"]``."""
-        return masks.indices(self.concept.entry, self.params, name)
+        return masks.indices(self.concept.entry, self._mask_params(), name)
 
     def _present(self, name: Any, kind: str) -> Any:
         """The compiled name ``name`` means here (variants read through their chosen option);
         ``UnknownNameError`` for a copy this instance does not have (``runtime/masks.py``)."""
         if isinstance(name, str) and masks.has_masks(self.concept.entry):
-            return masks.canonical(self.concept.entry, self.params, name, kind)
+            return masks.canonical(self.concept.entry, self._mask_params(), name, kind)
         return name
+
+    def _mask_params(self) -> dict[str, Any]:
+        """``params``, decoded once per instance (it is immutable) for the name checks."""
+        cached = self.__dict__.get("_params")
+        if cached is None:
+            cached = self.params
+            object.__setattr__(self, "_params", cached)
+        return cached
 
     def link_pose(self, link: str) -> np.ndarray:
         link = self._present(link, "link")
