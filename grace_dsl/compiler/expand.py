@@ -139,6 +139,7 @@ class _Expander:
         members = [self._using_variants(m) for m in members]
         self._check_ranges(members)
         members = self._drop_bad(members)
+        self._inherit(members)
         masks = tuple(sorted(self.masks.items()))
         variants = tuple(sorted(self.variants.items()))
         return replace(self.c, members=tuple(members), masks=masks, variants=variants)
@@ -556,6 +557,36 @@ class _Expander:
                 span,
                 "indices start at the loop's start and stop before its bound",
             )
+
+    def _inherit(self, members: list[Any]) -> None:
+        """Declarations outside a loop that hang on a masked copy share its mask: a joint on
+        ``drawer[3]``, the link below that joint and what the link holds, an action along it."""
+        masks = self.masks
+
+        def join(name: str, *sources: str) -> bool:
+            cond = list(masks.get(name, ()))
+            for src in sources:
+                cond += [c for c in masks.get(src, ()) if c not in cond]
+            if tuple(cond) != masks.get(name, ()):
+                masks[name] = tuple(cond)
+                return True
+            return False
+
+        joints = [m for m in members if isinstance(m, ast.Joint)]
+        links = {m.name: m for m in members if isinstance(m, ast.Link)}
+        changed = bool(masks)
+        while changed:
+            changed = False
+            for j in joints:
+                changed |= join(j.name, j.parent, j.child)
+                changed |= join(j.child, j.name) if j.child in links else False
+        for link in links.values():
+            for m in _walk_members(link.members):
+                if hasattr(m, "name") and link.name in masks:
+                    join(m.name, link.name)
+        for a in members:
+            if isinstance(a, ast.Action) and a.joint is not None:
+                join(a.name, a.joint.split(".")[0])
 
     def _drop_bad(self, members: list[Any]) -> list[Any]:
         """Declarations with a bad index go, like a syntax error's: no follow-on errors."""

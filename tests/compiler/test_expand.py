@@ -290,3 +290,19 @@ def test_masks_of_parts_follow_what_the_host_binds(tmp_path: Path) -> None:
     # a per-copy choice, an expression of the loop variable: bar for r[0], ring for r[1]
     assert masks["r[0].h[0]@ring"] == [("", 0)] and "r[0].h[0]@bar" not in masks
     assert masks["r[1].h[0]@bar"] == [("", 0)] and "r[1].h[0]@ring" not in masks
+
+
+def test_declarations_on_a_masked_copy_share_its_mask() -> None:
+    c, diags = _expanded(
+        "concept C {\n param n : int in [1, 3] = 2\n"
+        " for i in 0..n { link d[i] { shape f[i] = Cuboid() } "
+        "joint s[i] : prismatic(base -> d[i]) axis (0, 0, 1) range [0, 1] }\n"
+        " link knob { shape k = Cuboid() }\n"
+        " joint spin : revolute(d[2] -> knob) axis (0, 0, 1) range [0, 1]\n"
+        " action turn = turn along spin\n}"
+    )
+    assert diags == []
+    masks = dict(c.masks)
+    assert masks["d[2]"] == (("n", 2),)
+    assert masks["spin"] == masks["knob"] == masks["k"] == masks["turn"] == (("n", 2),)
+    assert "d[0]" not in masks and "s[0]" not in masks
