@@ -145,7 +145,7 @@ def _remove_srdf_pairs(robot: Robot, geometry: pin.GeometryModel, srdf: str | Pa
 def _object_geometry(inst: Any, to_base: FloatArray) -> list[pin.GeometryObject]:
     """One static BVH mesh per link of ``inst`` that has shapes, in the robot's base frame."""
     out = []
-    for link in inst.concept.links:
+    for link in inst.links:  # the copies its counts leave out have no geometry
         mesh = inst.link_mesh(link)
         if len(mesh.faces) == 0:
             continue

@@ -127,3 +127,20 @@ def test_the_chest_tutorial_steps(tmp_path: Path) -> None:
     ((lo, hi),) = four.grasp_range("handle[3].pull").values()
     assert (lo, hi) == pytest.approx((-0.698, 0.698), abs=1e-3)
     assert [o.grasp for o in four.rank("open[0]")] == ["handle[0]@ring.pull"]
+
+
+def test_pictures_and_mesh_files_hold_only_the_present_copies(stack: Any) -> None:
+    from grace_dsl.export.meshes import instance_meshes
+    from grace_dsl.render.scene import describe
+
+    inst = stack.instantiate(n=2, kind="ring")
+    scene = describe(inst, grasps=1, resolution=16)
+    assert {p.link for p in scene.parts} == {"base", "drawer[0]", "drawer[1]"}
+    assert {a.joint for a in scene.joints} == {"slide[0]", "slide[1]"}
+    assert {f.grasp for f in scene.frames} == {
+        "handle[0]@ring.pull", "handle[0]@ring.push", "handle[1]@ring.pull", "handle[1]@ring.push"
+    }  # fmt: skip
+    forces = {(f.action, f.grasp) for f in scene.forces}
+    assert {("open[0]", "handle[0]@ring.pull"), ("open[1]", "handle[1]@ring.pull")} <= forces
+    assert not any("@bar" in a + g or "[2]" in a + g for a, g in forces)
+    assert set(instance_meshes(inst, resolution=16)) == {"base", "drawer[0]", "drawer[1]"}
