@@ -144,3 +144,12 @@ def test_pictures_and_mesh_files_hold_only_the_present_copies(stack: Any) -> Non
     assert {("open[0]", "handle[0]@ring.pull"), ("open[1]", "handle[1]@ring.pull")} <= forces
     assert not any("@bar" in a + g or "[2]" in a + g for a, g in forces)
     assert set(instance_meshes(inst, resolution=16)) == {"base", "drawer[0]", "drawer[1]"}
+
+
+def test_explain_lists_repeats_and_variants(stack: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    from grace_dsl.cli.eacc import _explain_repeats
+
+    _explain_repeats(stack)
+    out = capsys.readouterr().out
+    assert "drawer  [0] .. [3]  n" in out
+    assert 'handle[1]  kind       "bar": StraightHandle (handle[1]@bar), "ring": RingPull' in out
