@@ -20,10 +20,12 @@ from typing import Any
 
 import numpy as np
 
+from grace_dsl.compiler.expand import expand
 from grace_dsl.compiler.manifest import source_text
 from grace_dsl.compiler.types import format_si
 from grace_dsl.lang import ast
 from grace_dsl.lang.parser import parse
+from grace_dsl.runtime import masks
 from grace_dsl.runtime.concept import suggest
 from grace_dsl.runtime.errors import UnknownNameError
 from grace_dsl.runtime.library import Concept, Library
@@ -92,6 +94,8 @@ class _Sources:
             self._concepts = {}
             for path, text in sorted(self._texts.items()):
                 module = parse(text, path).module
+                if module is not None:  # loops unrolled: `drawer[2]` is found like `drawer`
+                    module = expand(module)[0]
                 for decl in module.concepts if module else ():
                     self._concepts.setdefault(decl.name, (decl, text))
         return self._concepts.get(name)
@@ -126,6 +130,11 @@ def _src(text: str, node: Any) -> str | None:
 
 def _concept(lib: Library, c: Concept, sources: _Sources) -> dict[str, Any]:
     inst = c.instantiate() if c.grasps or c.joints else None
+    params = inst.params if inst is not None and masks.has_masks(c.entry) else {}
+
+    def here(name: str) -> Any:  # the instance at the defaults, if it has this member
+        return inst if not params or masks.present(c.entry, params, name) else None
+
     return {
         "name": c.name,
         "kind": c.entry["kind"],
@@ -135,9 +144,18 @@ def _concept(lib: Library, c: Concept, sources: _Sources) -> dict[str, Any]:
         "requires": [dict(r) for r in c.entry["requires"]],
         "parts": [_part(c, name, sources) for name in c.parts],
         "links": [dict(link) for link in c.entry["links"]],
-        "joints": [_joint(c, j, inst, sources) for j in c.joints.values()],
-        "grasps": [_grasp(lib, c, g, inst, sources) for g in c.grasps.values()],
+        "joints": [_joint(c, j, here(j["name"]), sources) for j in c.joints.values()],
+        "grasps": [_grasp(lib, c, g, here(g["name"]), sources) for g in c.grasps.values()],
         "actions": [_action(c, a) for a in c.actions.values()],
+        "repeats": masks.repeats(c.entry),
+        "variants": {
+            name: {
+                "param": v["param"],
+                "options": {o: c.parts[part] for o, part in v["options"].items()},
+                "parts": dict(v["options"]),
+            }
+            for name, v in (c.entry.get("variants") or {}).items()
+        },
     }
 
 
@@ -475,6 +493,25 @@ def _concept_md(c: Mapping[str, Any]) -> list[str]:
     if c["requires"]:
         messages = dict.fromkeys(r["message"] for r in c["requires"])
         out += ["Requires: " + "; ".join(messages) + ".", ""]
+    if c.get("repeats"):
+        out += ["Repeated members (copies past a count's value do not exist):", ""]
+        for base, r in c["repeats"].items():
+            counts = " and ".join(f"`{n}`" for n in r["counts"])
+            out.append(
+                f"- `{base}`: indices "
+                + ", ".join(r["indices"])
+                + (f", as many as {counts} says" if counts else "")
+            )
+        out.append("")
+    if c.get("variants"):
+        out += ["Variant parts (the choice parameter picks the part's concept):", ""]
+        for name, v in c["variants"].items():
+            options = ", ".join(f'"{o}" → {k} (`{v["parts"][o]}`)' for o, k in v["options"].items())
+            out.append(
+                f"- `{name}` by `{v['param']}`: {options}; `{name}.g` is the chosen "
+                "option's grasp g"
+            )
+        out.append("")
     if c["parts"]:
         out += ["Parts:", ""]
         for p in c["parts"]:

@@ -285,6 +285,33 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _explain_repeats(c: Any) -> None:
+    """Repeated members and variant parts, when the concept has any (``runtime/masks.py``)."""
+    from grace_dsl.runtime.masks import repeats
+
+    rows = [
+        [base, f"{r['indices'][0]} .. {r['indices'][-1]}", ", ".join(r["counts"]) or "-"]
+        for base, r in repeats(c.entry).items()
+    ]
+    if rows:
+        print_table("repeated (a copy exists while its index is below the count)",
+                    ["name", "indices", "count"], rows)  # fmt: skip
+    variants = c.entry.get("variants") or {}
+    if variants:
+        print_table(
+            "variant parts (the choice picks the part; NAME.grasp is the chosen option's grasp)",
+            ["part", "chosen by", "options"],
+            [
+                [name, v["param"], ", ".join(_option(c, o, p) for o, p in v["options"].items())]
+                for name, v in variants.items()
+            ],
+        )
+
+
+def _option(c: Any, option: str, part: str) -> str:
+    return f'"{option}": {c.parts.get(part, "?")} ({part})'
+
+
 def cmd_explain(args: argparse.Namespace) -> int:
     lib = _library(args.paths, args.search_path)
     if lib is None:
@@ -318,6 +345,7 @@ def cmd_explain(args: argparse.Namespace) -> int:
             for p in c.params
         ],
     )
+    _explain_repeats(c)
     if c.joints:
         print_table(
             "joints",

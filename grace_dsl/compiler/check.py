@@ -80,7 +80,8 @@ def check(prog: Program) -> tuple[Checked, list[Diagnostic]]:
         checker = _ConceptChecker(prog, entry.decl, entry.file, types, concepts)
         concepts[name] = checker.run()
         diags += checker.diags
-    return Checked(prog, types, concepts), diags
+    # the copies a `for` loop made share their source: each problem there is reported once
+    return Checked(prog, types, concepts), list(dict.fromkeys(diags))
 
 
 def _parts_first(prog: Program) -> list[str]:

@@ -132,6 +132,11 @@ class Lowered:
     shapes: list[ShapeInfo] = field(default_factory=list)
     requires: list[RequireInfo] = field(default_factory=list)
     parts: dict[str, str] = field(default_factory=dict)  # qualified part -> concept
+    # repeated and variant members (``compiler/expand.py``), qualified: when each exists, as
+    # [(count parameter, k): count > k | (choice parameter, option): choice == option]
+    masks: dict[str, list[tuple[str, int | str]]] = field(default_factory=dict)
+    # variant part -> (its choice parameter, {option: the part that option places})
+    variants: dict[str, tuple[str, dict[str, str]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -142,6 +147,8 @@ class _Scope:
     prefix: str
     ev: Evaluator
     parts: dict[str, _Scope]
+    lifted: frozenset[str] = frozenset()  # its parameters lifted into the flat model
+    bound: dict[str, Any] = field(default_factory=dict)  # the values its host binds
 
 
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
@@ -204,12 +211,14 @@ class _Instance:
         for m in parts:
             sub = self.checked.concepts[m.concept]
             scopes[m.name] = self._scope(sub, f"{prefix}{m.name}.", bound[m.name])
-        return _Scope(cc, prefix, ev, scopes)
+        lifted = frozenset(p.name for p in decl.members if isinstance(p, ast.Param)) - set(bindings)
+        return _Scope(cc, prefix, ev, scopes, lifted, bindings)
 
     def _emit(self, scope: _Scope, host_pose: Any, host_link: str) -> None:
         """Links, joints, shapes, grasps, parts, actions and requirements of a scope."""
         cc, prefix, ev = scope.cc, scope.prefix, scope.ev
         decl = cc.decl
+        self._masks(scope)
         # links and joints
         link_of = {BASE_LINK: host_link}
         for link in (m for m in decl.members if isinstance(m, ast.Link)):
@@ -234,6 +243,35 @@ class _Instance:
                 self._action(m, prefix, ev, host_pose)
             elif isinstance(m, ast.Require):
                 self._require(m, prefix, ev)
+
+    def _masks(self, scope: _Scope) -> None:
+        """A part's masks and variants, qualified: a condition on a lifted count or choice
+        names it; one its host binds to a constant is decided here (the copy always or never
+        exists: ``("", 0)``), and one bound to a host parameter names that parameter."""
+        prefix = scope.prefix
+        for name, cond in scope.cc.decl.masks:
+            out: list[tuple[str, int | str]] = []
+            for param, v in cond:
+                if param in scope.lifted:
+                    out.append((prefix + param, v))
+                    continue
+                value = scope.bound.get(param)
+                decided = _decide(value, v, scope.cc.param_types.get(param))
+                if decided is False:
+                    out = [("", 0)]
+                    break
+                host = _symbol_name(value)
+                if decided is None and host is not None:
+                    out.append((host, v))
+            if out:
+                self.out.masks[prefix + name] = out
+        for name, (param, options) in scope.cc.decl.variants:
+            host = prefix + param if param in scope.lifted else _symbol_name(scope.bound.get(param))
+            if host is not None:
+                self.out.variants[prefix + name] = (
+                    host,
+                    {value: prefix + part for value, part in options},
+                )
 
     # -- parameters
     def _lift(self, cc: CheckedConcept, p: ast.Param, prefix: str) -> Any:
@@ -455,6 +493,41 @@ class _Instance:
                 tuple(dict.fromkeys(prefix + n for n in reads(r.cond))),
             )
         )
+
+
+def _decide(value: Any, v: int | str, t: Type | None) -> bool | None:
+    """Whether a mask's condition holds for a value its host binds, when that is a constant
+    (a count above k; a choice equal to the option), else None."""
+    if isinstance(value, str):
+        return value == v
+    number = _constant(value)
+    if number is None:
+        return None
+    if isinstance(v, str):
+        choices = t.choices if t is not None else ()
+        return v in choices and number == choices.index(v)
+    return number > v
+
+
+def _constant(value: Any) -> float | None:
+    if isinstance(value, (int, float)):
+        return float(value)
+    is_constant = getattr(value, "is_constant", None)  # CasADi SX
+    if callable(is_constant) and is_constant():
+        return float(value)
+    if getattr(value, "is_Number", False):  # SymPy
+        return float(value)
+    return None
+
+
+def _symbol_name(value: Any) -> str | None:
+    """The host parameter a bound value is, when it is one parameter's symbol."""
+    is_symbolic = getattr(value, "is_symbolic", None)  # CasADi SX
+    if callable(is_symbolic) and is_symbolic():
+        return str(value.name())
+    if getattr(value, "is_Symbol", False):  # SymPy
+        return str(value)
+    return None
 
 
 def residual(b: Backend, ev: Evaluator, cond: ast.Expr) -> Any:

@@ -228,6 +228,11 @@ def concept_entry(
             for s in low.shapes
         ],
         "parts": dict(low.parts),
+        "masks": {n: [list(c) for c in cond] for n, cond in low.masks.items()},
+        "variants": {
+            n: {"param": param, "options": dict(options)}
+            for n, (param, options) in low.variants.items()
+        },
         "requires": [
             {
                 "message": r.message,

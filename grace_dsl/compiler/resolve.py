@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from grace_dsl.compiler.expand import VARIANT_SEP, expand
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import KEYWORDS, parse
@@ -187,7 +188,11 @@ def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
         return SourceFile(str(path), "", None)
     result = parse(text, str(path))
     diags += result.diagnostics
-    return SourceFile(str(path), text, result.module, result.dropped)
+    if result.module is None:
+        return SourceFile(str(path), text, None, result.dropped)
+    module, more, quiet = expand(result.module)
+    diags += more
+    return SourceFile(str(path), text, module, result.dropped | quiet)
 
 
 def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Path | None:
@@ -333,7 +338,7 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     "its geometry comes from grace_dsl.geometry",
                 )
             )
-        if isinstance(m, ast.Require):
+        if isinstance(m, (ast.Require, ast.For)):  # no `for` is left after unrolling
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
@@ -393,7 +398,9 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     )
                 )
             for g in m.using:
-                if not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
+                if not grasp_exists(prog, c, g) and VARIANT_SEP in g.split(".")[0]:
+                    diags += _variant_lacks(prog, c, m, g)
+                elif not grasp_exists(prog, c, g) and g.split(".")[0] not in dropped:
                     diags.append(
                         error(
                             "E110",
@@ -403,7 +410,40 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                         )
                     )
     diags += _check_link_tree(c, links, dropped)
-    return diags
+    return _once_per_span(diags)
+
+
+def _once_per_span(diags: list[Diagnostic]) -> list[Diagnostic]:
+    """The copies a ``for`` loop made share their source: report each problem there once."""
+    seen: set[tuple[str, ast.Span, str]] = set()
+    out = []
+    for d in diags:
+        key = (d.code, d.span, d.message if d.code != "E127" else "")
+        if key not in seen:
+            seen.add(key)
+            out.append(d)
+    return out
+
+
+def _variant_lacks(prog: Program, c: ast.Concept, a: ast.Action, g: str) -> list[Diagnostic]:
+    """An option of a variant part without a grasp the host's action uses (E127)."""
+    head, _, rest = g.partition(".")
+    part = next((m for m in flat_members(c) if isinstance(m, ast.Part) and m.name == head), None)
+    if part is None or part.variant is None or part.concept not in prog.concepts:
+        return []
+    name, option = part.variant
+    has = sorted(set(all_grasps(prog, prog.concept(part.concept))))
+    return [
+        error(
+            "E127",
+            f'option "{option}" of part `{name}` ({part.concept}) has no grasp `{rest}`, which '
+            f"action `{a.name}` uses",
+            part.concept_span,
+            f"{part.concept} has "
+            + (", ".join(f"`{x}`" for x in has) or "no grasps")
+            + f"; every option must provide `{rest}`",
+        )
+    ]
 
 
 def all_grasps(prog: Program, c: ast.Concept) -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
@@ -94,7 +95,14 @@ def write_mesh(geom: Geom, directory: Path | None, relative: str, ext: str) -> s
 
 
 def geom_file_stem(geom: Geom) -> str:
-    return "".join(c if c.isalnum() or c == "_" else "_" for c in geom.name.replace(".", "__"))
+    return xml_name(geom.name)  # the same spelling as links and joints
+
+
+def xml_name(name: str) -> str:
+    """``handle.pull`` -> ``handle__pull``; a repeated member's index and a variant's option
+    join with one underscore: ``drawer[2].handle[0]@bar`` -> ``drawer_2__handle_0_bar``."""
+    name = re.sub(r"\[(-?\d+)\]", lambda m: "_" + m.group(1).replace("-", "m"), name)
+    return re.sub(r"[^A-Za-z0-9_]", "_", name.replace(".", "__"))
 
 
 def to_text(root: ET.Element, comment: str) -> str:

@@ -30,7 +30,7 @@ def instance_meshes(
     inst: Instance, link: str | None = None, resolution: int = 64
 ) -> dict[str, trimesh.Trimesh]:
     """The non-empty meshes per link (only ``link`` when given), world frame, joint values."""
-    links = [link] if link is not None else list(inst.concept.links)
+    links = [link] if link is not None else list(inst.links)
     out = {name: inst.link_mesh(name, resolution=resolution) for name in links}
     out = {name: mesh for name, mesh in out.items() if len(mesh.faces)}
     if not out:

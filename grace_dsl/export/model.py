@@ -11,7 +11,6 @@ of link k is ``E_k(q) = L_k(p, q) @ offset_k`` with ``offset_k = L_k(p, 0)^-1 @ 
 from __future__ import annotations
 
 import logging
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -19,8 +18,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trimesh
 
+from grace_dsl.export.common import xml_name
 from grace_dsl.export.shapes import Geom, link_geoms
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.masks import has_masks, present
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -104,9 +105,9 @@ class ExportOptions:
 
 
 def sanitize(name: str, taken: set[str]) -> str:
-    """A name every XML consumer accepts (``handle.pull`` -> ``handle__pull``), kept unique
-    within ``taken``."""
-    base = re.sub(r"[^A-Za-z0-9_]", "_", name.replace(".", "__")) or "unnamed"
+    """A name every XML consumer accepts (``handle.pull`` -> ``handle__pull``, ``drawer[2]`` ->
+    ``drawer_2``), kept unique within ``taken``."""
+    base = xml_name(name) or "unnamed"
     out, i = base, 2
     while out in taken:
         out, i = f"{base}_{i}", i + 1
@@ -125,7 +126,10 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
     lo, hi = kin.joint_limits()
     rest = dict(zip(kin.links, kin.link_poses(q0)))
     joints = concept.entry["joints"]
-    root = _root(concept.links, joints)
+    if has_masks(concept.entry):  # the copies this instance's counts leave out are not exported
+        params = inst.params
+        joints = [j for j in joints if present(concept.entry, params, j["child"])]
+    root = _root(inst.links, joints)
     order = _depth_first(root, joints)
     link_origin = {root: np.zeros(3)}
     for j in order:

@@ -114,9 +114,33 @@ class IfExpr:
     span: Span = _span()
 
 
-Expr = Union[Number, Name, String, Bool, Unary, Binary, Call, Vector, Member, IfExpr]  # noqa: UP007
+@dataclass(frozen=True)
+class Index:
+    """``drawer[i]`` in an expression: a member of a repeated declaration, before unrolling."""
+
+    obj: Expr
+    index: Expr
+    span: Span = _span()
+
+
+Expr = Union[Number, Name, String, Bool, Unary, Binary, Call, Vector, Member, IfExpr, Index]  # noqa: UP007
 
 COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
+
+# A declaration's or reference's indices, before unrolling.  Names stay strings: an indexed
+# name is written as a template with ``[]`` for each index (``drawer[].handle.pull``) and its
+# index expressions kept beside it, so every pass after unrolling sees plain strings.
+Indices = tuple[Expr, ...]
+HOLE = "[]"
+
+
+def fill(template: str, values: tuple[str, ...] | list[str]) -> str:
+    """``fill("drawer[].pull", ["2"]) == "drawer[2].pull"``: a template's holes filled in order."""
+    pieces = template.split(HOLE)
+    out = pieces[0]
+    for value, rest in zip(values, pieces[1:], strict=True):
+        out += f"[{value}]" + rest
+    return out
 
 
 # ---- declarations -------------------------------------------------------------------------------
@@ -166,6 +190,7 @@ class Let:
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    index: Indices = ()
 
 
 @dataclass(frozen=True)
@@ -176,6 +201,7 @@ class Shape:
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    index: Indices = ()
 
 
 @dataclass(frozen=True)
@@ -187,6 +213,23 @@ class Part:
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    concept_span: Span = _span()
+    index: Indices = ()
+    # ``match kind { "bar" => BarHandle(), ... }``: the selector and the alternatives; after
+    # unrolling, one part per alternative whose ``variant`` names the part and its option
+    selector: Expr | None = None
+    variants: tuple[Variant, ...] = ()
+    variant: tuple[str, str] | None = None  # (the variant part's name, this option)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One alternative of a variant part: ``"knob" => RoundKnob(radius: 20mm)``."""
+
+    value: str
+    concept: str
+    args: tuple[Arg, ...]
+    span: Span = _span()
     concept_span: Span = _span()
 
 
@@ -218,15 +261,17 @@ class Grasp:
     symmetric: bool = False
     about: Expr | None = None  # the symmetry axis; ``symmetric`` alone means the approach (0, 0, 1)
     mode_span: Span = _span()
+    index: Indices = ()
 
 
 @dataclass(frozen=True)
 class Link:
     name: str
-    members: tuple[Shape | Part | Grasp | Let, ...]
+    members: tuple[Shape | Part | Grasp | Let | For, ...]
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    index: Indices = ()
 
 
 @dataclass(frozen=True)
@@ -245,6 +290,9 @@ class Joint:
     kind_span: Span = _span()
     parent_span: Span = _span()
     child_span: Span = _span()
+    index: Indices = ()
+    parent_index: Indices = ()
+    child_index: Indices = ()
 
 
 @dataclass(frozen=True)
@@ -262,9 +310,25 @@ class Action:
     name_span: Span = _span()
     verb_span: Span = _span()
     joint_span: Span = _span()
+    index: Indices = ()
+    joint_index: Indices = ()
+    using_index: tuple[Indices, ...] = ()  # per ``using`` entry; () when none is indexed
 
 
-Member_ = Union[Param, Require, Let, Shape, Part, Link, "Joint", Grasp, Action]
+@dataclass(frozen=True)
+class For:
+    """``for i in lo..hi { ... }``: its members once for each integer lo <= i < hi, unrolled
+    by the compiler (``grace_dsl/compiler/expand.py``) before any other pass sees them."""
+
+    var: str
+    lo: Expr
+    hi: Expr
+    members: tuple[Member_, ...]
+    span: Span = _span()
+    var_span: Span = _span()
+
+
+Member_ = Union[Param, Require, Let, Shape, Part, Link, "Joint", Grasp, Action, For]
 
 
 @dataclass(frozen=True)
@@ -277,6 +341,11 @@ class Concept:
     doc: str = ""
     span: Span = _span()
     name_span: Span = _span()
+    # Filled by unrolling (``compiler/expand.py``): when a declaration exists, per name, as
+    # (count parameter, k) meaning ``count > k`` or (choice parameter, option) meaning ``==``;
+    # and each variant part's choice parameter with its options' part names.
+    masks: tuple[tuple[str, tuple[tuple[str, int | str], ...]], ...] = ()
+    variants: tuple[tuple[str, tuple[str, tuple[tuple[str, str], ...]]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -333,4 +402,6 @@ def _children(node: Any) -> list[Any]:
         return [node.obj]
     if isinstance(node, IfExpr):
         return [node.cond, node.then, node.orelse]
+    if isinstance(node, Index):
+        return [node.obj, node.index]
     return []

@@ -112,6 +112,8 @@ def format_expr(e: ast.Expr) -> str:
         return f"({obj}).{e.field}" if wrap else f"{obj}.{e.field}"
     if isinstance(e, ast.IfExpr):
         return f"if {format_expr(e.cond)} then {format_expr(e.then)} else {format_expr(e.orelse)}"
+    if isinstance(e, ast.Index):
+        return f"{_sub(e.obj, _POSTFIX)}[{format_expr(e.index)}]"
     raise TypeError(f"not an expression: {e!r}")
 
 
@@ -127,7 +129,7 @@ def _prec(e: ast.Expr) -> int:
         return _BINARY[e.op]
     if isinstance(e, ast.Unary):
         return _NOT if e.op == "not" else _SIGN
-    if isinstance(e, ast.Member):
+    if isinstance(e, (ast.Member, ast.Index)):
         return _POSTFIX
     return _ATOM
 
@@ -235,6 +237,11 @@ def _layout_chain(e: ast.Binary, col: int, indent: int) -> list[str]:
 # ---- declarations ------------------------------------------------------------------------------
 
 
+def indexed(template: str, index: ast.Indices) -> str:
+    """A name or reference with its indices written back: ``drawer[i + 1].handle.pull``."""
+    return ast.fill(template, [format_expr(e) for e in index]) if index else template
+
+
 def _segments(d: Decl) -> tuple[list[Segment], bool]:
     """A declaration as clauses, and whether a long one fills continuation lines greedily
     (params, like the shipped files) rather than one clause per line (joints, grasps)."""
@@ -251,12 +258,14 @@ def _segments(d: Decl) -> tuple[list[Segment], bool]:
         message: list[Segment] = [[quote(d.message)]] if d.message is not None else []
         return [["require ", d.cond], *message], False
     if isinstance(d, ast.Let):
-        return [[f"let {d.name} ="], [d.value]], False
+        return [[f"let {indexed(d.name, d.index)} ="], [d.value]], False
     if isinstance(d, ast.Shape):
-        return [[f"shape {d.name} = ", d.value], *_placement(d.at)], False
+        return [[f"shape {indexed(d.name, d.index)} = ", d.value], *_placement(d.at)], False
+    if isinstance(d, ast.Part) and d.selector is not None:
+        return _variant_segments(d), False
     if isinstance(d, ast.Part):
         call = ast.Call(d.concept, d.args)
-        return [[f"part {d.name} = ", call], *_placement(d.at)], False
+        return [[f"part {indexed(d.name, d.index)} = ", call], *_placement(d.at)], False
     if isinstance(d, ast.Joint):
         return _joint_segments(d), False
     if isinstance(d, ast.Grasp):
@@ -283,8 +292,20 @@ def _placement(at: ast.Expr | None) -> list[Segment]:
     return [["at ", at]] if at is not None else []
 
 
+def _variant_segments(d: ast.Part) -> list[Segment]:
+    """``part h = match kind { "bar" => Bar(), ... }``; a long one puts each option on a line."""
+    assert d.selector is not None
+    head: Segment = [f"part {indexed(d.name, d.index)} = match ", d.selector, " {"]
+    arms: list[Segment] = []
+    for i, v in enumerate(d.variants):
+        last = i == len(d.variants) - 1
+        arms.append([f"{quote(v.value)} => ", ast.Call(v.concept, v.args), "" if last else ","])
+    return [head, *arms, ["}"], *_placement(d.at)]
+
+
 def _joint_segments(d: ast.Joint) -> list[Segment]:
-    segs: list[Segment] = [[f"joint {d.name} : {d.kind}({d.parent} -> {d.child})"]]
+    parent, child = indexed(d.parent, d.parent_index), indexed(d.child, d.child_index)
+    segs: list[Segment] = [[f"joint {indexed(d.name, d.index)} : {d.kind}({parent} -> {child})"]]
     if d.axis is not None:
         segs.append(["axis ", d.axis])
     segs += _placement(d.origin)
@@ -296,7 +317,7 @@ def _joint_segments(d: ast.Joint) -> list[Segment]:
 
 
 def _grasp_head(d: ast.Grasp) -> Segment:
-    head: Segment = [f"grasp {d.name}"]
+    head: Segment = [f"grasp {indexed(d.name, d.index)}"]
     for i, fp in enumerate(d.free):
         head += [("(" if i == 0 else ", ") + f"{fp.name} in [", fp.lo, ", ", fp.hi, "]"]
         if fp.default is not None:
@@ -306,12 +327,15 @@ def _grasp_head(d: ast.Grasp) -> Segment:
 
 
 def _action_segments(d: ast.Action) -> list[Segment]:
-    head: Segment = [f"action {d.name} = {d.verb}"]
+    head: Segment = [f"action {indexed(d.name, d.index)} = {d.verb}"]
     if d.joint is not None:
-        head.append(f" along {d.joint}" + (f" {d.sense}" if d.sense else ""))
+        joint = indexed(d.joint, d.joint_index)
+        head.append(f" along {joint}" + (f" {d.sense}" if d.sense else ""))
     elif d.direction is not None:
         head += [" toward ", d.direction]
-    using: list[Segment] = [[f"using {', '.join(d.using)}"]] if d.using else []
+    ixs = d.using_index or tuple(() for _ in d.using)
+    refs = ", ".join(indexed(u, ix) for u, ix in zip(d.using, ixs, strict=True))
+    using: list[Segment] = [[f"using {refs}"]] if d.using else []
     return [head, *using]
 
 
@@ -325,6 +349,13 @@ def _code_lines(d: Decl, indent: int) -> list[str]:
     flat = " ".join(_flat(s) for s in segs)
     if indent + len(flat) <= WIDTH:
         return [" " * indent + flat]
+    if isinstance(d, ast.Part) and d.selector is not None:  # one option per line, `}` below
+        arms = len(d.variants)
+        lines = _layout_parts(segs[0], indent)
+        for seg in segs[1 : 1 + arms]:
+            lines += _layout_parts(seg, indent + INDENT)
+        lines.append(" " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :]))
+        return lines
     lines = _layout_parts(segs[0], indent)
     for seg in segs[1:]:
         text = _flat(seg)
@@ -387,8 +418,9 @@ class _Node:
 _DECL_RULES = frozenset({
     "use_some", "use_all", "concept_decl", "param_decl", "require_decl", "let_decl",
     "shape_decl", "part_decl", "link_decl", "joint_decl", "grasp_decl", "action_decl",
+    "for_decl", "variant_part_decl",
 })  # fmt: skip
-_BLOCK_RULES = frozenset({"concept_decl", "link_decl"})
+_BLOCK_RULES = frozenset({"concept_decl", "link_decl", "for_decl"})
 
 
 class _CommentSink:
@@ -454,8 +486,9 @@ def _node(tree: Tree[Token]) -> _Node:
 
 
 def _bare_node(d: Decl) -> _Node:
-    members: Sequence[Decl] = d.members if isinstance(d, (ast.Concept, ast.Link)) else ()
-    brace = (0, 0) if isinstance(d, (ast.Concept, ast.Link)) else None
+    block = isinstance(d, (ast.Concept, ast.Link, ast.For))
+    members: Sequence[Decl] = d.members if isinstance(d, (ast.Concept, ast.Link, ast.For)) else ()
+    brace = (0, 0) if block else None
     return _Node(type(d).__name__, (0, 0), (0, 0), brace, [_bare_node(m) for m in members])
 
 
@@ -561,11 +594,11 @@ class _Printer:
         self, kid: _Node, decl: Decl, depth: int, blank: bool, eol: _Comment | None
     ) -> None:
         indent = " " * (INDENT * depth)
-        if not isinstance(decl, ast.Use):
+        if not isinstance(decl, (ast.Use, ast.For)):
             for line in _doc_lines(decl.doc):
                 self._line(indent + line, blank)
                 blank = False
-        if isinstance(decl, (ast.Concept, ast.Link)):
+        if isinstance(decl, (ast.Concept, ast.Link, ast.For)):
             self._block(kid, decl, depth, blank)
             return
         lines = _code_lines(decl, INDENT * depth)
@@ -575,9 +608,17 @@ class _Printer:
             self._line(line, blank)
             blank = False
 
-    def _block(self, kid: _Node, decl: ast.Concept | ast.Link, depth: int, blank: bool) -> None:
-        keyword = decl.kind if isinstance(decl, ast.Concept) else "link"
-        head = f"{' ' * (INDENT * depth)}{keyword} {decl.name} {{"
+    def _block(
+        self, kid: _Node, decl: ast.Concept | ast.Link | ast.For, depth: int, blank: bool
+    ) -> None:
+        if isinstance(decl, ast.For):
+            lo, hi = _sub(decl.lo, _SUM), _sub(decl.hi, _SUM)
+            title = f"for {decl.var} in {lo}..{hi}"
+        elif isinstance(decl, ast.Concept):
+            title = f"{decl.kind} {decl.name}"
+        else:
+            title = f"link {indexed(decl.name, decl.index)}"
+        head = f"{' ' * (INDENT * depth)}{title} {{"
         trail = f"  {kid.trail.text}" if kid.trail else ""
         if not decl.members and not kid.close and kid.header is None:
             self._line(head + "}" + trail, blank)

@@ -30,7 +30,7 @@ MAX_RECOVERIES = 25
 UNITS = ("mm", "cm", "m", "deg", "rad")
 KEYWORDS = frozenset(
     "use concept primitive param require let shape part link joint grasp action in at if then "
-    "else and or not true false choice".split()
+    "else and or not true false choice for match".split()
 )
 SYNC_KEYWORDS = frozenset(
     [
@@ -46,6 +46,7 @@ SYNC_KEYWORDS = frozenset(
         "concept",
         "primitive",
         "use",
+        "for",
     ]
 )
 
@@ -147,12 +148,12 @@ _PARSE_LOCK = threading.Lock()
 def _parse_once(text: str, path: str) -> tuple[ast.Module, list[Diagnostic]]:
     lark, builder = _parser()
     with _PARSE_LOCK:  # the inline builder holds per-parse state
-        builder.path, builder.depth, builder.notes = path, {}, []
+        builder.path, builder.depth, builder.notes, builder.indices = path, {}, [], {}
         try:
             items: list[Any] = lark.parse(text)  # type: ignore[assignment]  # inline builder
             notes = builder.notes
         finally:
-            builder.depth, builder.notes = {}, []
+            builder.depth, builder.notes, builder.indices = {}, [], {}
     uses = tuple(i for i in items if isinstance(i, ast.Use))
     concepts = tuple(i for i in items if isinstance(i, ast.Concept))
     return ast.Module(path, uses, concepts), notes
@@ -192,6 +193,8 @@ class _Builder(Transformer):
         self.path = path
         self.depth: dict[int, int] = {}
         self.notes: list[Diagnostic] = []  # problems that do not stop the parse
+        # the index expressions of an indexed name's token (``drawer[]``), by the token's id
+        self.indices: dict[int, tuple[Token, tuple[Any, ...]]] = {}
 
     # -- helpers
     def _span(self, first: Any, last: Any) -> ast.Span:
@@ -264,6 +267,77 @@ class _Builder(Transformer):
             name.value, kind, tuple(members), _doc_text(docs), span, _tok_span(self.path, name)
         )
 
+    # -- indexed names and repetition
+    def decl_name(self, c: list[Any]) -> Token:
+        """``drawer[i]`` as one token ``drawer[]`` spanning the whole name; its index
+        expressions are kept aside (``_ix``)."""
+        first, *indices = c
+        if not indices:
+            return first
+        last = self._end(indices[-1])
+        tok = Token(
+            "NAME",
+            first.value + ast.HOLE * len(indices),
+            first.start_pos,
+            first.line,
+            first.column,
+            last.end_line,
+            last.end_col + 1,  # the closing `]`
+            first.end_pos,
+        )
+        self.indices[id(tok)] = (tok, tuple(indices))  # the token kept alive: ids stay unique
+        return tok
+
+    def index(self, c: list[Any]) -> Any:
+        return c[0]
+
+    def _ix(self, tok: Token | None) -> tuple[Any, ...]:
+        kept, indices = self.indices.get(id(tok), (None, ()))
+        return indices if tok is not None and kept is tok else ()
+
+    def for_decl(self, c: list[Any]) -> ast.For:
+        var, lo, _dots, hi, *members = c
+        return ast.For(
+            var.value, lo, hi, tuple(members), self._span(var, hi), _tok_span(self.path, var)
+        )
+
+    def index_expr(self, c: list[Any]) -> ast.Index:
+        obj, index = c
+        span = self._start(obj).to(self._end(index))
+        span = ast.Span(span.file, span.line, span.col, span.end_line, span.end_col + 1)
+        return self._expr(ast.Index(obj, index, span), obj, index)
+
+    def variant(self, c: list[Any]) -> ast.Variant:
+        value, concept, args = c
+        return ast.Variant(
+            _string_value(value),
+            concept.value,
+            tuple(args or ()),
+            self._span(value, concept),
+            _tok_span(self.path, concept),
+        )
+
+    def variant_part_decl(self, c: list[Any]) -> ast.Part:
+        docs, name, selector, *rest = c
+        trailing = rest.pop()
+        at = rest.pop().value if rest and isinstance(rest[-1], _Clause) else None
+        if rest and rest[-1] is None:
+            rest.pop()
+        variants = tuple(v for v in rest if isinstance(v, ast.Variant))
+        return ast.Part(
+            name.value,
+            "",
+            (),
+            at,
+            self._docs(docs, trailing),
+            self._span(name, at or selector),
+            _tok_span(self.path, name),
+            self._start(selector),
+            self._ix(name),
+            selector,
+            variants,
+        )
+
     # -- members
     def _docs(self, leading: list[Token], trailing: list[Token]) -> str:
         return _doc_text(leading + trailing)
@@ -325,6 +399,7 @@ class _Builder(Transformer):
             self._docs(docs, trailing),
             self._span(name, value),
             _tok_span(self.path, name),
+            self._ix(name),
         )
 
     def shape_decl(self, c: list[Any]) -> ast.Shape:
@@ -338,6 +413,7 @@ class _Builder(Transformer):
             self._docs(docs, trailing),
             self._span(name, at or value),
             _tok_span(self.path, name),
+            self._ix(name),
         )
 
     def part_decl(self, c: list[Any]) -> ast.Part:
@@ -353,6 +429,7 @@ class _Builder(Transformer):
             self._span(name, at or concept),
             _tok_span(self.path, name),
             _tok_span(self.path, concept),
+            self._ix(name),
         )
 
     def link_decl(self, c: list[Any]) -> ast.Link:
@@ -364,6 +441,7 @@ class _Builder(Transformer):
             self._docs(docs, trailing),
             _tok_span(self.path, name),
             _tok_span(self.path, name),
+            self._ix(name),
         )
 
     def joint_decl(self, c: list[Any]) -> ast.Joint:
@@ -385,6 +463,9 @@ class _Builder(Transformer):
             _tok_span(self.path, kind),
             _tok_span(self.path, parent),
             _tok_span(self.path, child),
+            self._ix(name),
+            self._ix(parent),
+            self._ix(child),
         )
 
     def joint_axis(self, c: list[Any]) -> _Clause:
@@ -426,6 +507,7 @@ class _Builder(Transformer):
             symmetric is not None,
             symmetric.value if symmetric else None,
             _tok_span(self.path, mode.value) if mode else ast.NO_SPAN,
+            self._ix(name),
         )
 
     def _once(self, clauses: list[_Clause], owner: str) -> dict[str, _Clause]:
@@ -467,7 +549,9 @@ class _Builder(Transformer):
     def action_decl(self, c: list[Any]) -> ast.Action:
         docs, name, verb, rule, *rest = c
         trailing = rest.pop()
-        using = tuple(rest[0]) if rest and rest[0] is not None else ()
+        refs = list(rest[0]) if rest and rest[0] is not None else []
+        using = tuple(text for text, _ in refs)
+        using_index = tuple(ix for _, ix in refs) if any(ix for _, ix in refs) else ()
         joint_tok, sense, direction = rule
         return ast.Action(
             name.value,
@@ -481,6 +565,9 @@ class _Builder(Transformer):
             _tok_span(self.path, name),
             _tok_span(self.path, verb),
             _tok_span(self.path, joint_tok) if joint_tok else ast.NO_SPAN,
+            self._ix(name),
+            self._ix(joint_tok),
+            using_index,
         )
 
     def along_rule(self, c: list[Any]) -> tuple[Token, str | None, None]:
@@ -497,13 +584,14 @@ class _Builder(Transformer):
     def toward_rule(self, c: list[Any]) -> tuple[None, None, Any]:
         return None, None, c[0]
 
-    def action_using(self, c: list[str]) -> list[str]:
+    def action_using(self, c: list[Any]) -> list[Any]:
         return c
 
     def joint_ref(self, c: list[Token]) -> Token:
-        """``hinge`` or a part's joint ``knob.spin``, as one token spanning the whole name."""
+        """``hinge``, a part's joint ``knob.spin`` or ``drawer[i].slide``, as one token spanning
+        the whole name (its indices kept aside like a declaration's)."""
         first, last = c[0], c[-1]
-        return Token(
+        tok = Token(
             "NAME",
             ".".join(t.value for t in c),
             first.start_pos,
@@ -513,9 +601,13 @@ class _Builder(Transformer):
             last.end_column,
             last.end_pos,
         )
+        indices = tuple(i for t in c for i in self._ix(t))
+        if indices:
+            self.indices[id(tok)] = (tok, indices)
+        return tok
 
-    def grasp_ref(self, c: list[Token]) -> str:
-        return ".".join(t.value for t in c)
+    def grasp_ref(self, c: list[Token]) -> tuple[str, tuple[Any, ...]]:
+        return ".".join(t.value for t in c), tuple(i for t in c for i in self._ix(t))
 
     # -- expressions
     def if_expr(self, c: list[Any]) -> ast.IfExpr:

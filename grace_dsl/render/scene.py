@@ -17,6 +17,7 @@ import numpy as np
 from grace_dsl.render import style
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.masks import has_masks, present
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -197,7 +198,7 @@ def describe(inst: Instance, grasps: int = 3, resolution: int = 48) -> Scene:
         raise ParameterError(f"grasps must be 0 or more, got {grasps}")
     concept = inst.concept
     parts = []
-    for i, link in enumerate(concept.links):
+    for i, link in enumerate(inst.links):  # the copies its counts leave out are not drawn
         mesh = inst.link_mesh(link, resolution=resolution)
         if len(mesh.faces):
             parts.append(
@@ -223,11 +224,23 @@ def describe(inst: Instance, grasps: int = 3, resolution: int = 48) -> Scene:
     )
 
 
+def _present_in(inst: Instance) -> Any:
+    """Whether a grasp or action exists in this instance (repeated copies, variant options)."""
+    entry = inst.concept.entry
+    if not has_masks(entry):
+        return lambda name: True
+    params = inst.params
+    return lambda name: present(entry, params, name)
+
+
 def _frames(inst: Instance, n: int, length: float) -> list[GraspFrame]:
     out: list[GraspFrame] = []
     if n == 0:
         return out
+    here = _present_in(inst)
     for name, entry in inst.concept.grasps.items():
+        if not here(name):
+            continue
         count = n if entry["free"] else 1
         out += [GraspFrame(name, pose, length) for pose in inst.grasps(name, count)]
     return out
@@ -235,8 +248,11 @@ def _frames(inst: Instance, n: int, length: float) -> list[GraspFrame]:
 
 def _forces(inst: Instance, notes: list[str]) -> list[Force]:
     out = []
+    here = _present_in(inst)
     for action, entry in inst.concept.actions.items():
-        using = list(entry["using"]) or list(inst.concept.grasps)
+        if not here(action):
+            continue
+        using = [g for g in list(entry["using"]) or list(inst.concept.grasps) if here(g)]
         if not using:
             notes.append(f"action {action} uses no grasp: no point to draw its force at")
         for grasp in using:
@@ -267,7 +283,10 @@ def _joint_axes(inst: Instance, draft: Scene) -> list[JointAxis]:
         return []
     world = Kinematics.of(inst).joint_axes()  # unit axes and points on them, in the world
     size, out = draft.size, []
+    here = _present_in(inst)
     for i, name in enumerate(world.names):
+        if not here(name):
+            continue
         joint = concept.joints[name]
         d, o = world.axes[i], world.origins[i]
         moved = set(_subtree(joint["child"], concept.joints))

@@ -210,7 +210,7 @@ def _object_geometry(inst: Any, to_base: FloatArray) -> list[tuple[str, pin.Geom
     """One BVH mesh per link of ``inst`` that has shapes, in the link's frame, placed at the
     link's pose in the robot's base frame."""
     out = []
-    for link in inst.concept.links:
+    for link in inst.links:  # the copies its counts leave out have no geometry
         mesh = inst.link_mesh(link)
         if len(mesh.faces) == 0:
             continue

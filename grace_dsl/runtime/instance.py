@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from grace_dsl.runtime import masks
 from grace_dsl.runtime.concept import check_requirements, suggest
 from grace_dsl.runtime.errors import EvaluationError, GraceError, ParameterError, UnknownNameError
 from grace_dsl.runtime.gripper import Gripper
@@ -142,7 +143,41 @@ class Instance:
         lo, hi = self._limits
         return {n: (a, b) for n, a, b in zip(self.concept.moving_joints, lo, hi)}
 
+    @property
+    def links(self) -> tuple[str, ...]:
+        """The links this instance has: the concept's, less copies its counts leave out."""
+        names = tuple(self.concept.links)
+        entry = self.concept.entry
+        if not masks.has_masks(entry):
+            return names
+        params = self._mask_params()
+        return tuple(n for n in names if masks.present(entry, params, n))
+
+    def count(self, name: str) -> int:
+        """How many copies of a repeated member (``drawer`` of ``for i in 0..n``) it has."""
+        return masks.count(self.concept.entry, self._mask_params(), name)
+
+    def indices(self, name: str) -> list[str]:
+        """The indices of the copies of a repeated member it has: ``["[0]", "[1]"]``."""
+        return masks.indices(self.concept.entry, self._mask_params(), name)
+
+    def _present(self, name: Any, kind: str) -> Any:
+        """The compiled name ``name`` means here (variants read through their chosen option);
+        ``UnknownNameError`` for a copy this instance does not have (``runtime/masks.py``)."""
+        if isinstance(name, str) and masks.has_masks(self.concept.entry):
+            return masks.canonical(self.concept.entry, self._mask_params(), name, kind)
+        return name
+
+    def _mask_params(self) -> dict[str, Any]:
+        """``params``, decoded once per instance (it is immutable) for the name checks."""
+        cached = self.__dict__.get("_params")
+        if cached is None:
+            cached = self.params
+            object.__setattr__(self, "_params", cached)
+        return cached
+
     def link_pose(self, link: str) -> np.ndarray:
+        link = self._present(link, "link")
         if not isinstance(link, str) or link not in self.concept.links:
             raise UnknownNameError(
                 f"{self.concept.name} has no link {link!r}" + suggest(link, self.concept.links)
@@ -174,7 +209,7 @@ class Instance:
         """Every link pose finite (once per instance): the geometry moves shapes by them, and an
         infinite motion would surface there as a misleading complaint about the points."""
         if "_links_ok" not in self.__dict__:
-            for link in self.concept.links:
+            for link in self.links:
                 self.link_pose(link)
             object.__setattr__(self, "_links_ok", True)
 
@@ -211,6 +246,7 @@ class Instance:
 
     # -- grasps
     def _grasp_spec(self, name: Any) -> GraspSpec:
+        name = self._present(name, "grasp")
         spec = self.concept.grasps.get(name) if isinstance(name, str) else None
         if spec is None:
             raise UnknownNameError(
@@ -323,6 +359,7 @@ class Instance:
 
     # -- actions
     def _action_spec(self, name: Any) -> ActionSpec:
+        name = self._present(name, "action")
         spec = self.concept.actions.get(name) if isinstance(name, str) else None
         if spec is None:
             raise UnknownNameError(

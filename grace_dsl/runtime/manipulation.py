@@ -23,6 +23,7 @@ import numpy as np
 
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
+from grace_dsl.runtime.masks import has_masks, present
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
 from grace_dsl.runtime.symmetry import spin_about
@@ -76,11 +77,17 @@ def rank(
 def candidates(inst: Instance, action: ActionSpec) -> list[str]:
     """The grasps an action names with ``using``; else every grasp on the link it moves."""
     if action.using:
-        return list(action.using)
-    if action.joint is None:
-        return list(inst.concept.grasps)
-    child = inst.concept.joints[action.joint].child
-    return [n for n, g in inst.concept.grasps.items() if g.link == child]
+        names = list(action.using)
+    elif action.joint is None:
+        names = list(inst.concept.grasps)
+    else:
+        child = inst.concept.joints[action.joint].child
+        names = [n for n, g in inst.concept.grasps.items() if g.link == child]
+    entry = inst.concept.entry
+    if not has_masks(entry):
+        return names
+    params = inst.params  # copies and options the instance does not have drop out
+    return [n for n in names if present(entry, params, n)]
 
 
 def _judge(

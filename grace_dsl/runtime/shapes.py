@@ -34,6 +34,7 @@ from grace_dsl.compiler.types import format_si
 from grace_dsl.geometry import GeometryError, primitive_mesh, primitive_sdf, validate
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.masks import has_masks, present
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -112,8 +113,10 @@ class ShapeTree:
 
     def __init__(self, inst: Instance, resolution: int = 64):
         self.inst, self.resolution = inst, resolution
-        self.shapes: dict[str, Mapping[str, Any]] = {
-            s["name"]: s for s in inst.concept.entry["shapes"]
+        entry = inst.concept.entry
+        params = inst.params if has_masks(entry) else {}
+        self.shapes: dict[str, Mapping[str, Any]] = {  # copies the instance lacks drop out
+            s["name"]: s for s in entry["shapes"] if not params or present(entry, params, s["name"])
         }
         self.q0 = np.zeros_like(inst.q)
         self._rest = Kinematics.of(inst).in_concept_frame()

@@ -59,6 +59,7 @@ from grace_dsl.runtime.errors import (
 )
 from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.masks import has_masks, present
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec
@@ -343,7 +344,7 @@ class _Geometry:
         # world <- concept frame at q = 0, per link: where each link's shapes are now
         self.motions = {
             link: inst.link_pose(link) @ np.linalg.inv(self.tree.link_pose(link))
-            for link in inst.concept.links
+            for link in inst.links  # the copies its counts leave out have no geometry
         }
         self._inverse = {k: np.linalg.inv(m) for k, m in self.motions.items()}
 
@@ -435,13 +436,16 @@ class _Run:
     def _check_state(self, state: Instance) -> None:
         geo = _Geometry(state)
         self.evaluated["shape"] += 1
-        samples = {g: self._grasp_samples(state, g) for g in self.concept.grasps}
+        here = _present_in(state)  # repeated copies and variant options it has
+        samples = {g: self._grasp_samples(state, g) for g in self.concept.grasps if here(g)}
         for ss in samples.values():
             if ss:
                 self._check_grasp(state, geo, ss)
         for action, entry in self.concept.actions.items():
+            if not here(action):
+                continue
             for g in _action_grasps(self.concept, entry):
-                for s in samples[g]:
+                for s in samples.get(g, ()):
                     self._check_action(state, action, entry, s)
 
     def _grasp_samples(self, state: Instance, grasp: str) -> list[_Sample]:
@@ -708,6 +712,15 @@ class _Run:
             f"the followed grasp drifts {drift:.2e} from its link as {joint} moves to {to:.4g}"
         )
         self._record(inst, member, s, _at_most("follow", drift, ATTACHED, "", message))
+
+
+def _present_in(state: Instance) -> Any:
+    """Whether a member exists in this state (``runtime/masks.py``)."""
+    entry = state.concept.entry
+    if not has_masks(entry):
+        return lambda name: True
+    params = state.params
+    return lambda name: present(entry, params, name)
 
 
 def _action_grasps(concept: Concept, entry: ActionSpec) -> list[str]:

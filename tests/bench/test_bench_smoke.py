@@ -25,6 +25,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_ik.py",
         "bench_plan.py",
         "bench_render.py",
+        "bench_repeat.py",
         "bench_runtime.py",
         "bench_verify.py",
     ]
