@@ -259,9 +259,7 @@ class Scene:
         best = np.full(sum(sizes), np.inf)
         for name in names:
             inv = motions[self.tree.shapes[name]["link"]]
-            local = np.concatenate(
-                [p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)]
-            )
+            local = np.concatenate([p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)])
             best = np.minimum(best, self._shape(name, self.placements[name], local))
         return np.split(best, np.cumsum(sizes)[:-1])
 
@@ -270,7 +268,9 @@ class Scene:
         validated them once): this query runs many times per rank call."""
         s = self.tree.shapes[name]
         if s["primitive"] in ("union", "difference"):
-            dists = [self._shape(op, place @ self.tree.relative(op), points) for op in s["operands"]]
+            dists = [
+                self._shape(op, place @ self.tree.relative(op), points) for op in s["operands"]
+            ]
             if s["primitive"] == "union":
                 return np.min(dists, axis=0)
             return np.maximum(dists[0], -np.min(dists[1:], axis=0))

@@ -81,7 +81,8 @@ def load_hand(path_or_name: str | Path) -> Gripper:
             return _load_file(str(shipped))
         if not Path(text).exists():
             raise ParameterError(
-                f"no shipped hand {text!r}" + suggest(text, shipped_hands() or ["(none)"])
+                f"no shipped hand {text!r}"
+                + suggest(text, shipped_hands() or ["(none)"])
                 + f"; shipped: {', '.join(shipped_hands())}, or give a path to a .toml file"
             )
     return _load_file(str(Path(text).resolve()))
@@ -112,7 +113,8 @@ def parse_hand(text: str, path: str = "<hand>") -> Gripper:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         line = re.search(r"line (\d+)", str(exc))
-        raise HandFileError(path, int(line.group(1)) if line else None, "", f"not TOML: {exc}")
+        at = int(line.group(1)) if line else None
+        raise HandFileError(path, at, "", f"not TOML: {exc}") from None
     return _Reader(text, path).hand(data)
 
 
@@ -161,13 +163,15 @@ class _Reader:
         if not name.strip():
             raise self.fail("name", "must not be empty")
         if "max_width" not in data:
-            raise self.fail("max_width", "missing: the widest opening, e.g. \"80 mm\" (0: a hand "
-                            "whose fingers do not open)")
+            raise self.fail(
+                "max_width",
+                'missing: the widest opening, e.g. "80 mm" (0: a hand whose fingers do not open)',
+            )
         max_width = self.length(data["max_width"], "max_width", zero=True)
         pad = self.table(data, "pad")
         self.known(pad, PAD_KEYS, "pad")
         if "size" not in pad:
-            raise self.fail("pad.size", "missing: the pad's size x y z, e.g. \"17.5 15.2 18.5 mm\"")
+            raise self.fail("pad.size", 'missing: the pad\'s size x y z, e.g. "17.5 15.2 18.5 mm"')
         size = self.lengths(pad["size"], "pad.size", 3)
         orient = self.table(data, "orientation")
         self.known(orient, ORIENTATION_KEYS, "orientation")
@@ -223,26 +227,36 @@ class _Reader:
         return value
 
     # -- quantities
-    def quantity(self, value: Any, key: str, count: int, units: Mapping[str, float],
-                 what: str) -> list[float]:
+    def quantity(
+        self, value: Any, key: str, count: int, units: Mapping[str, float], what: str
+    ) -> list[float]:
         """``count`` numbers followed by one unit of ``units``, e.g. "17.5 15.2 18.5 mm"."""
         example = " ".join(["10"] * count) + f" {next(iter(units))}"
         if not isinstance(value, str):
-            raise self.fail(key, f"a {what} is text with its unit, e.g. \"{example}\"; got "
-                            f"{value!r}")
+            raise self.fail(key, f'a {what} is text with its unit, e.g. "{example}"; got {value!r}')
         words = value.split()
         if not words or NUMBER.match(words[-1]):
-            raise self.fail(key, f"{value!r} has no unit; write e.g. \"{example}\" "
-                            f"(units: {', '.join(units)})")
+            raise self.fail(
+                key, f'{value!r} has no unit; write e.g. "{example}" (units: {", ".join(units)})'
+            )
         unit, numbers = words[-1], words[:-1]
         if unit not in units:
-            other = "an angle" if unit in ANGLE_UNITS else "a length" if unit in LENGTH_UNITS \
+            other = (
+                "an angle"
+                if unit in ANGLE_UNITS
+                else "a length"
+                if unit in LENGTH_UNITS
                 else "not a unit"
-            raise self.fail(key, f"wrong unit {unit!r} ({other}): {key} is {what}, in "
-                            f"{', '.join(units)}")
+            )
+            raise self.fail(
+                key, f"wrong unit {unit!r} ({other}): {key} is {what}, in {', '.join(units)}"
+            )
         if len(numbers) != count or not all(NUMBER.match(n) for n in numbers):
-            raise self.fail(key, f"expected {count} number{'s' * (count > 1)} then the unit, "
-                            f"e.g. \"{example}\"; got {value!r}")
+            raise self.fail(
+                key,
+                f"expected {count} number{'s' * (count > 1)} then the unit, "
+                f'e.g. "{example}"; got {value!r}',
+            )
         out = [float(n) * units[unit] for n in numbers]
         if not all(math.isfinite(x) for x in out):
             raise self.fail(key, f"not finite: {value!r}")
@@ -251,8 +265,9 @@ class _Reader:
     def length(self, value: Any, key: str, zero: bool = False) -> float:
         (x,) = self.quantity(value, key, 1, LENGTH_UNITS, "a length")
         if x < 0 or (x == 0 and not zero):
-            raise self.fail(key, f"must be a {'non-negative' if zero else 'positive'} length, "
-                            f"got {value!r}")
+            raise self.fail(
+                key, f"must be a {'non-negative' if zero else 'positive'} length, got {value!r}"
+            )
         return x
 
     def lengths(self, value: Any, key: str, count: int, positive: bool = True) -> list[float]:
@@ -273,13 +288,19 @@ class _Reader:
         if key not in table:
             return None
         value = table[key]
-        ok = isinstance(value, list) and len(value) == 3 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            for v in value
+        ok = (
+            isinstance(value, list)
+            and len(value) == 3
+            and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value
+            )
         )
         if not ok or not any(value):
-            raise self.fail(f"orientation.{key}", f"a world direction is three numbers, not all "
-                            f"0, e.g. [0, 0, -1]; got {value!r}")
+            raise self.fail(
+                f"orientation.{key}",
+                f"a world direction is three numbers, not all 0, e.g. [0, 0, -1]; got {value!r}",
+            )
         return (float(value[0]), float(value[1]), float(value[2]))
 
     def boxes(self, data: Mapping[str, Any], key: str) -> tuple[HandBox, ...]:

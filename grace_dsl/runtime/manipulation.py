@@ -175,8 +175,9 @@ def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
     best = next((v for v in verdicts if v.feasible), verdicts[0] if verdicts else None)
     reasons = list(hand)
     if not force_ok.any():
-        reasons.append(f"a {mode} contact cannot apply the force of {ctx.action.name} here: "
-                       f"{why[0]}")
+        reasons.append(
+            f"a {mode} contact cannot apply the force of {ctx.action.name} here: {why[0]}"
+        )
     elif best is not None and not best.feasible and not hand:
         reasons += _contact_reasons(verdicts)
     i = best.grasp_index if best is not None else 0
@@ -235,8 +236,16 @@ class _Verdict:
         order = _preference(rotation, dist[index], usable)
 
         def verdict(k: int, ok: bool, reason: str) -> _Verdict:
-            return _Verdict(contact, ok, int(index[k]), hands[k], float(rotation[k]),
-                            float(tilt[k]), float(turn[k]), reason)
+            return _Verdict(
+                contact,
+                ok,
+                int(index[k]),
+                hands[k],
+                float(rotation[k]),
+                float(tilt[k]),
+                float(turn[k]),
+                reason,
+            )
 
         if not usable.any():
             pool = np.flatnonzero(force_ok[index])
@@ -271,11 +280,15 @@ def _orientation_reason(gripper: Gripper, tilt: np.ndarray, turn: np.ndarray) ->
     if not len(tilt):
         return "no pose of this contact can apply the force"
     if tilt.min() > gripper.approach_tolerance:
-        return (f"the hand would tilt {math.degrees(float(tilt.min())):.0f} deg from its "
-                f"approach; it allows {math.degrees(gripper.approach_tolerance):.0f} deg")
+        return (
+            f"the hand would tilt {math.degrees(float(tilt.min())):.0f} deg from its "
+            f"approach; it allows {math.degrees(gripper.approach_tolerance):.0f} deg"
+        )
     within = tilt <= gripper.approach_tolerance
-    return (f"its fingers would close {math.degrees(float(turn[within].min())):.0f} deg from "
-            f"where they can; it allows {math.degrees(gripper.closing_tolerance):.0f} deg")
+    return (
+        f"its fingers would close {math.degrees(float(turn[within].min())):.0f} deg from "
+        f"where they can; it allows {math.degrees(gripper.closing_tolerance):.0f} deg"
+    )
 
 
 def _hand_reasons(inst: Instance, name: str, mode: str, gripper: Gripper) -> list[str]:
@@ -301,7 +314,10 @@ def _poses(
     lo, hi, default = Kinematics.of(inst).grasp_range(name)
     values = np.vstack([spread(list(ranges.values()), samples), default[None, :]])
     poses = np.concatenate(
-        [inst.grasps(name, samples, reference=reference), inst.grasp(name, reference=reference)[None]]
+        [
+            inst.grasps(name, samples, reference=reference),
+            inst.grasp(name, reference=reference)[None],
+        ]
     )
     free = [dict(zip(ranges, map(float, row))) for row in values]
     span = np.where(hi > lo, hi - lo, 1.0)
@@ -402,6 +418,8 @@ def _geometry(
 
 
 def _joint(ctx: _Context) -> int:
+    """The index in q of the action's joint (only called for actions along a joint)."""
+    assert ctx.action.joint is not None
     return ctx.inst.concept.joint_index[ctx.action.joint]
 
 
@@ -426,12 +444,16 @@ def _path_orientation(gripper: Gripper, path: tuple[np.ndarray, np.ndarray]) -> 
         rel = np.einsum("ji,njk->nik", poses[0, :3, :3], poses[:, :3, :3])
         turned = np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0))
         if turned.max() > TURN_SLACK:
-            return (f"the path turns the hand {math.degrees(float(turned.max())):.0f} deg and "
-                    f"{gripper.name}'s wrist cannot turn")
+            return (
+                f"the path turns the hand {math.degrees(float(turned.max())):.0f} deg and "
+                f"{gripper.name}'s wrist cannot turn"
+            )
     tilt, turn = gripper.orientation_error(poses[:, :3, :3])
     bad = ~gripper.allows(tilt, turn)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        return (f"along the path the hand would tilt {math.degrees(float(tilt[k])):.0f} deg "
-                f"and its fingers turn {math.degrees(float(turn[k])):.0f} deg from where it can")
+        return (
+            f"along the path the hand would tilt {math.degrees(float(tilt[k])):.0f} deg "
+            f"and its fingers turn {math.degrees(float(turn[k])):.0f} deg from where it can"
+        )
     return None

@@ -23,6 +23,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_geometry.py",
         "bench_grasp_ik.py",
         "bench_ik.py",
+        "bench_rank_agreement.py",
         "bench_render.py",
         "bench_runtime.py",
         "bench_verify.py",
