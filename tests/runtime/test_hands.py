@@ -4,6 +4,7 @@ force transmission per contact, as ``rank`` judges them."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -349,3 +350,31 @@ def test_ties_prefer_the_default_free_parameters(lib: eac.Library) -> None:
         best = _by_grasp(drawer.rank("open", samples=samples))["handle.pull"]
         assert best.feasible and best.free == {"s": 0.0}
         np.testing.assert_allclose(best.pose, drawer.grasp("handle.pull"), atol=1e-12)
+
+
+# ---- the documentation and eacc verify --------------------------------------------------------
+
+
+def test_the_documented_example_file_is_the_shipped_topdown_hand() -> None:
+    api = (Path(__file__).resolve().parents[2] / "docs" / "api.md").read_text()
+    block = api.split("### Hand description files", 1)[1].split("```toml\n", 1)[1].split("```")[0]
+    documented = parse_hand(block, "docs/api.md")
+    shipped = Gripper.load("topdown")
+    assert dataclasses.replace(documented, doc=shipped.doc) == shipped
+
+
+def test_eacc_verify_takes_a_hand(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from grace_dsl.cli.eacc import main
+    from grace_dsl.runtime.verify import VerifyReport
+
+    argv = ["verify", "--concept", "RoundKnob", "--draws", "2", "--json"]
+    assert main([*argv, "--gripper", "topdown"]) == 0
+    assert VerifyReport.from_json(json.loads(capsys.readouterr().out)).gripper == "topdown"
+    path = write(tmp_path, "mine.toml", MINIMAL)
+    assert main([*argv, "--gripper", str(path)]) == 0
+    assert VerifyReport.from_json(json.loads(capsys.readouterr().out)).gripper == "mine"
+    assert main([*argv, "--gripper", "pandda"]) == 2
+    assert "no shipped hand 'pandda'" in capsys.readouterr().err
+    bad = write(tmp_path, "bad.toml", MINIMAL.replace('"60 mm"', '"60 deg"'))
+    assert main([*argv, "--gripper", str(bad)]) == 2
+    assert "bad.toml:3: max_width: wrong unit" in capsys.readouterr().err
