@@ -42,9 +42,9 @@ from grace_dsl.runtime.verify import verifiable
 
 RESULTS = Path(__file__).resolve().parent / "results" / "rank_agreement.json"
 SMOKE = ("CabinetDrawer", "RotaryDial", "SunkenDoor")
-SPACING = 0.003  # m between sample points on every box face
-APPROACH_STEP = 0.004  # m between hand positions along the approach
-PATH_STEPS = 16
+SPACING = 0.004  # m between sample points on every box face
+APPROACH_STEP = 0.005  # m between hand positions along the approach
+PATH_STEPS = 12
 DEPTH = 0.002  # m a box may sink into the part (the ranker's and eacc verify's tolerance)
 CLEARANCE = 0.01  # m a pinch opens beyond its width on each side (the ranker's)
 CONE = math.radians(60.0)

@@ -378,3 +378,14 @@ def test_eacc_verify_takes_a_hand(tmp_path: Path, capsys: pytest.CaptureFixture[
     bad = write(tmp_path, "bad.toml", MINIMAL.replace('"60 mm"', '"60 deg"'))
     assert main([*argv, "--gripper", str(bad)]) == 2
     assert "bad.toml:3: max_width: wrong unit" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hand", ["topdown", "pusher"])
+def test_the_standard_library_verifies_for_every_shipped_hand(hand: str) -> None:
+    """`eacc verify --gripper HAND` is clean (the Panda's run is in test_verify.py)."""
+    from grace_dsl.runtime.verify import verify_library
+
+    report = verify_library(eac.load_library(), draws=3, seed=0, gripper=Gripper.load(hand))
+    assert report.ok, [(f.concept, f.check, f.member, f.message) for f in report.failures]
+    assert report.gripper == hand
