@@ -89,6 +89,21 @@ def test_the_panda_numbers_are_those_of_example_robot_data() -> None:
         np.testing.assert_allclose(b.rpy, rpy, atol=1e-4)
 
 
+def test_the_panda_palm_holds_the_hand_mesh() -> None:
+    """Every vertex of example-robot-data's hand collision mesh below the finger joints' plane
+    lies in one of the palm boxes (the mesh read with trimesh, moved to the gripper frame)."""
+    import trimesh
+
+    mesh = trimesh.load(_panda_urdf().parents[1] / "meshes" / "collision" / "hand.stl")
+    v = np.asarray(mesh.vertices)
+    v = v[v[:, 2] <= 0.0584 + 1e-9] - (0.0, 0.0, 0.1129)  # tips end 112.9 mm from panda_hand
+    inside = np.zeros(len(v), bool)
+    for box in Gripper.panda().palm:
+        local = np.abs(v - np.array(box.center))
+        inside |= np.all(local <= np.array(box.half_extents) + 5e-4, axis=1)
+    assert inside.all(), v[~inside]
+
+
 def _panda_urdf() -> Path:
     from grace_dsl.robot.model import robot_data_file
 
@@ -174,7 +189,7 @@ def test_unknown_hands_and_missing_files_are_typed_errors(tmp_path: Path) -> Non
 def test_the_hand_boxes_mirror_and_open() -> None:
     hand = Gripper.panda()
     closed, wide = hand.hand_boxes(0.0), hand.hand_boxes(0.06)
-    assert [b.part for b in closed] == ["pad"] * 2 + ["finger"] * 6 + ["palm"]
+    assert [b.part for b in closed] == ["pad"] * 2 + ["finger"] * 6 + ["palm"] * 2
     for a, b in zip(closed, wide):  # fingers move out by half the opening, the palm stays
         shift = 0.0 if a.part == "palm" else math.copysign(0.03, a.pose[1, 3])
         np.testing.assert_allclose(b.pose[:3, 3] - a.pose[:3, 3], (0, shift, 0), atol=1e-12)
