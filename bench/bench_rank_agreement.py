@@ -226,7 +226,12 @@ def main() -> int:
     ap.add_argument("--hands", nargs="+", help="only these shipped hands (default: all)")
     ap.add_argument("--out", type=Path, default=RESULTS, help="where the JSON goes")
     ap.add_argument("--smoke", action="store_true", help="3 concepts, one pose: checks it runs")
+    ap.add_argument(
+        "--time", action="store_true", help="only time rank (the Panda, front facing the robot)"
+    )
     args = ap.parse_args()
+    if args.time:
+        return time_rank(args)
     poses = dict(POSES)
     if args.smoke:
         args.concepts = args.concepts or list(SMOKE)
@@ -294,6 +299,34 @@ def main() -> int:
     args.out.write_text(json.dumps(summary, indent=1) + "\n")
     print(f"wrote {args.out} in {summary['seconds_total']} s")
     return 1 if bad or silent else 0
+
+
+def time_rank(args: argparse.Namespace) -> int:
+    """CPU time per ``inst.rank`` call over every action of the library (the Panda, default
+    parameters, front facing the robot, 32 samples, best of 3 passes). Uses only what the
+    runtime had before hands were described, so it times older checkouts too."""
+    lib = eac.load_library()
+    names = args.concepts or (list(SMOKE) if args.smoke else verifiable(lib))
+    calls = [(lib[n].instantiate(pose=facing()), a) for n in names for a in lib[n].actions]
+    hand = Gripper.panda()
+    for inst, a in calls:  # warm: native kernels loaded, sweeps cached
+        inst.rank(a, hand)
+    passes = []
+    for _ in range(3):
+        t0 = time.process_time()
+        for inst, a in calls:
+            inst.rank(a, hand)
+        passes.append((time.process_time() - t0) / len(calls))
+    ms = round(1e3 * min(passes), 2)
+    print(f"{len(calls)} rank calls: {ms} ms CPU per call (best of 3)")
+    out = {
+        "command": " ".join(["bench/bench_rank_agreement.py", *sys.argv[1:]]),
+        "rank_calls": len(calls),
+        "ms_cpu_per_rank": ms,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    return 0
 
 
 def summarize(rows: list[dict[str, Any]], hands: list[str]) -> dict[str, dict[str, int]]:
