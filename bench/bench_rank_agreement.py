@@ -46,6 +46,7 @@ SPACING = 0.004  # m between sample points on every box face
 APPROACH_STEP = 0.005  # m between hand positions along the approach
 PATH_STEPS = 12
 DEPTH = 0.002  # m a box may sink into the part (the ranker's and eacc verify's tolerance)
+TIE = 1e-9  # m: a depth equal to DEPTH up to rounding is at the limit, not beyond it
 CLEARANCE = 0.01  # m a pinch opens beyond its width on each side (the ranker's)
 CONE = math.radians(60.0)
 TURN = math.radians(5.0)
@@ -189,7 +190,7 @@ def check(inst: Any, action: str, o: Any, hand: Gripper) -> tuple[str | None, fl
         for w in np.arange(opened, hold - 1e-12, -0.001):
             clouds.append(place(hand_points(hand, float(w), fingers_only=True), o.hand_pose))
     deepest = -float(inst.sdf(np.concatenate(clouds)).min())
-    if deepest > DEPTH:
+    if deepest > DEPTH + TIE:
         return "hand in the part on the approach", deepest
     end = path_end(inst, action)
     if end is None:
@@ -208,7 +209,7 @@ def check(inst: Any, action: str, o: Any, hand: Gripper) -> tuple[str | None, fl
     for pose, q in zip(path, np.linspace(q0, end, PATH_STEPS)):
         d = -float(inst.with_joints({spec.joint: float(q)}).sdf(place(held, pose)).min())
         deepest = max(deepest, d)
-        if d > DEPTH:
+        if d > DEPTH + TIE:
             return "hand in the part along the path", deepest
     return None, max(deepest, 0.0)
 
