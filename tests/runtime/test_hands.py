@@ -404,3 +404,21 @@ def test_the_standard_library_verifies_for_every_shipped_hand(hand: str) -> None
     report = verify_library(eac.load_library(), draws=3, seed=0, gripper=Gripper.load(hand))
     assert report.ok, [(f.concept, f.check, f.member, f.message) for f in report.failures]
     assert report.gripper == hand
+
+
+def test_the_rotation_score_is_a_geodesic_angle_up_to_the_half_turn() -> None:
+    """rotation_from: the angle of R_home^T R (trace formula checked against the axis-angle
+    rotation that produced it), the same for R turned half a turn about its approach."""
+    rng = np.random.default_rng(7)
+    half = np.diag([-1.0, -1.0, 1.0])
+    for _ in range(50):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        theta = float(rng.uniform(0, math.pi / 2))  # below 90 deg the half turn is farther
+        k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        turn = np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * k @ k
+        home = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        home *= np.sign(np.linalg.det(home))
+        r = home @ turn
+        assert float(rotation_from(home, r)) == pytest.approx(theta, abs=1e-7)
+        assert float(rotation_from(home, r @ half)) == pytest.approx(theta, abs=1e-7)
