@@ -14,6 +14,8 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from grace_dsl.cli.output import console, print_json, print_table, print_text
+from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.verify import VerifyReport, summarize, verifiable, verify_library
 
 if TYPE_CHECKING:
@@ -31,6 +33,12 @@ def add_verify_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--draws", type=_positive, default=200, help="valid draws per concept")
     p.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
+    p.add_argument(
+        "--gripper",
+        default="panda",
+        metavar="NAME|FILE",
+        help="the hand: a shipped one (panda, topdown, pusher) or a .toml description file",
+    )
     p.add_argument("--json", action="store_true", help="print the whole report as JSON")
 
 
@@ -48,8 +56,15 @@ def run_verify(args: argparse.Namespace, lib: Library) -> int:
     names = _chosen(lib, args.concept)
     if names is None:
         return 2
+    try:
+        hand = Gripper.load(args.gripper)
+    except ParameterError as exc:
+        sys.stderr.write(f"eacc verify: {exc}\n")
+        return 2
     with _progress() as progress:
-        report = verify_library(lib, names, draws=args.draws, seed=args.seed, progress=progress)
+        report = verify_library(
+            lib, names, draws=args.draws, seed=args.seed, gripper=hand, progress=progress
+        )
     if args.json:
         print_json(report.to_json())
     else:

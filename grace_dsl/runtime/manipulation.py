@@ -1,63 +1,90 @@
-"""Ranking the manipulation functions of an action for a given gripper.
+"""Ranking the manipulation functions of an action for a given hand.
 
 An action (``open``) may be performed through several manipulation functions: pinch the handle,
-hook the fingers behind it, push the door's edge.  Each asks something of the hand: a pinch needs
-fingers that close and open wide enough; every function needs the hand to come in along the
-grasp's approach (+z of the grasp frame).  A push or press contact can only push roughly along
-its fingers.  A hook rests the side of its closed fingers on a wall (behind a bar, inside a
-pocket); by convention that wall lies on the grasp's +x side, so a hook can only apply a force
-with a positive component along +x (pressing the fingers onto the wall, not pulling them off it)
-and never push in along its approach.  ``rank`` checks every function of the action against a
-gripper's abilities over its free-parameter range and orders them: feasible first, then
-prehensile before hooking before pushing, then by how far the hand must tilt from its preferred
-approach.
+hook the fingers behind it, push the door's edge. Each asks something of the hand, and ``rank``
+checks all of it over the grasp's free-parameter range (and spins, for symmetric grasps):
+
+- **the hand's abilities**: a pinch needs fingers that close and open wide enough;
+- **the whole rotation**: the hand's rotation at the grasp must lie within its orientation cones
+  (approach and closing axis, for a top-down hand); among poses that do, the one needing the
+  smallest rotation from the hand's home orientation is preferred (its required orientation, else
+  the caller's ``reference``, else the Panda's home pointing down);
+- **force transmission**: a pinch holds both ways (and turns the hand for a twist, if its wrist
+  turns); a hook rests the side of its closed fingers on a wall on the grasp's +x side, so it
+  only pulls towards that wall and never pushes in along its approach; a push or press only
+  pushes, within 60 deg of the contact's +z;
+- **the wrist**: a hand that cannot turn is not offered a twist in place, nor a pinch whose path
+  turns it;
+- **geometry**: the hand's boxes (pads, finger blocks, palm) against the instance's signed
+  distance while it comes in (backed off along the contact's -z, fingers open for a pinch, then
+  closing), at the grasp, and along the whole follow path of a joint action (the instance at each
+  joint value), each allowed ``PENETRATION`` (the rubber pads give that much).
+
+A push may be made with the fingertips, the side of a closed finger or the palm (``contacts``);
+the first of those that works is the option's ``contact``. Options are ordered feasible first,
+then pinch, hook, push/press, then by rotation. Among poses whose rotation is within ``TIE`` of the
+best, the one nearest the grasp's default free parameters wins (the default is always tried).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.contact import CLEAR, Scene, hand_poses, rotation_from, sweep
+from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
 from grace_dsl.runtime.masks import has_masks, present
+from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
-from grace_dsl.runtime.symmetry import spin_about
-from grace_dsl.tolerances import DEGENERATE, RANGE_SLACK
+from grace_dsl.runtime.symmetry import HAND_HOME, spin_about
+from grace_dsl.tolerances import RANGE_SLACK
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.gripper import Gripper
     from grace_dsl.runtime.instance import Instance
 
 MODE_ORDER = {"pinch": 0, "hook": 1, "push": 2, "press": 2}
-# A push transmits force within this angle of the fingers' direction (+z): 60 deg, a friction
-# cone with mu ~ 1.7, generous on purpose; a hook anything outside it (towards its +x side).
+# A push transmits force within this angle of the contact's +z: 60 deg, a friction cone with
+# mu ~ 1.7, generous on purpose; a hook anything outside it (towards its +x side).
 CONTACT_CONE = math.radians(60.0)
 # A hook's force needs a positive component along the grasp's +x, the side its fingers rest on:
 # more than this (cosine), so that a force along the wall (cosine 0) does not count.
 HOOK_GRIP = 1e-6
 SPIN_STEPS = 12  # spins tried for a grasp symmetric about an axis other than its approach
+TIE = math.radians(1.0)  # rotations this close are equal: the default free parameters win
+PENETRATION = CLEAR  # m a box may enter the part (as eacc verify allows the pads)
+CLEARANCE = 0.01  # m a pinch opens beyond its width on each side while coming in
+PATH_STEPS = 6  # joint values along a follow path checked for geometry
+GEOMETRY_TRIES = 2  # candidate poses per contact whose geometry is checked, best first
+TURN_SLACK = math.radians(5.0)  # how far a path may turn a hand whose wrist cannot turn
+CONTACTS = {"pinch": ("pads",), "hook": ("fingers",)}  # push/press: the hand's push modes
 
 
 @dataclass(frozen=True)
 class Option:
-    """One manipulation function of an action, judged for one gripper."""
+    """One manipulation function of an action, judged for one hand."""
 
     grasp: str
     mode: str
     feasible: bool
-    tilt: float  # radians between the best pose's approach and the gripper's required approach
+    tilt: float  # radians between the hand's approach and its required approach (0: any)
     free: dict[str, float] = field(default_factory=dict)  # free parameters of the best pose
-    pose: np.ndarray | None = field(default=None, compare=False, repr=False)
+    pose: np.ndarray | None = field(default=None, compare=False, repr=False)  # the grasp pose
     reasons: tuple[str, ...] = ()  # why it is infeasible (empty when feasible)
     doc: str = ""
+    rotation: float = 0.0  # radians the hand turns from its home orientation to the grasp
+    turn: float = 0.0  # radians between its closing axis and its required closing line (0: any)
+    contact: str = ""  # pads (pinch), fingers (hook), tip, side or palm (push)
+    hand_pose: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def sort_key(self) -> tuple[int, int, float]:
-        return (0 if self.feasible else 1, MODE_ORDER.get(self.mode, 3), self.tilt)
+        return (0 if self.feasible else 1, MODE_ORDER.get(self.mode, 3), self.rotation)
 
 
 def rank(
@@ -70,7 +97,8 @@ def rank(
     """Every manipulation function of ``action``, best first (see the module docstring)."""
     spec = inst._action_spec(action)
     samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
-    options = [_judge(inst, spec, g, gripper, samples, reference) for g in candidates(inst, spec)]
+    ctx = _Context(inst, spec, gripper, reference)
+    options = [_judge_in(ctx, g, samples) for g in candidates(inst, spec)]
     return tuple(sorted(options, key=Option.sort_key))
 
 
@@ -90,6 +118,39 @@ def candidates(inst: Instance, action: ActionSpec) -> list[str]:
     return [n for n in names if present(entry, params, n)]
 
 
+class _Context:
+    """What the options of one rank call share: the hand's home, the scene, the path's end."""
+
+    def __init__(self, inst: Instance, action: ActionSpec, gripper: Gripper, reference: Any):
+        self.inst, self.action, self.gripper = inst, action, gripper
+        fallback = HAND_HOME if reference is None else np.asarray(reference, float)[:3, :3]
+        self.home = gripper.home(fallback)
+        # a constrained hand spins symmetric grasps towards where it can be
+        constrained = gripper.approach is not None or gripper.closing is not None
+        self.reference = self.home if constrained or reference is not None else None
+        self._scene: Scene | None = None
+        self.end = _path_end(inst, action)
+
+    @property
+    def scene(self) -> Scene:
+        if self._scene is None:
+            self._scene = Scene(self.inst)
+        return self._scene
+
+
+def _path_end(inst: Instance, action: ActionSpec) -> float | None:
+    """The joint value a follow path ends at: the end of the range the action drives towards
+    (a quarter turn for a joint that turns freely); None without a joint or path."""
+    if action.joint is None:
+        return None
+    lo, hi = inst.joint_limits()[action.joint]
+    q0 = inst.joints[action.joint]
+    end = hi if action.opening else lo
+    if not math.isfinite(end):
+        end = q0 + action.sign * math.pi / 2
+    return None if abs(end - q0) < 1e-9 else float(end)
+
+
 def _judge(
     inst: Instance,
     action: ActionSpec,
@@ -98,33 +159,142 @@ def _judge(
     samples: int,
     reference: Any,
 ) -> Option:
+    """One grasp judged for an action (whether or not the action lists it)."""
+    return _judge_in(_Context(inst, action, gripper, reference), name, samples)
+
+
+def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
+    inst, gripper = ctx.inst, ctx.gripper
     g = inst.concept.grasps[name]
     mode = g.mode
-    reasons = list(_hand_reasons(inst, name, mode, gripper))
-    poses, free = _poses(inst, name, samples, reference)
-    tilt = _tilt(poses, gripper)
-    why = [_contact(inst, action, mode, p) for p in poses]
+    hand = _hand_reasons(inst, name, mode, gripper)
+    poses, free, dist = _poses(inst, name, samples, ctx.reference)
+    why = [_contact(inst, ctx.action, mode, p, gripper) for p in poses]
     force_ok = np.array([w is None for w in why])
-    within = tilt <= gripper.approach_tolerance + DEGENERATE
-    usable = force_ok & within
+    contacts = CONTACTS.get(mode, gripper.push_modes)
+    if not contacts:
+        hand.append(f"{gripper.name} has nothing to {mode} with")
+    verdicts: list[_Verdict] = []
+    for c in contacts:  # the first contact that works is the option's
+        verdicts.append(_Verdict.judge(ctx, name, mode, c, poses, force_ok, dist, not hand))
+        if verdicts[-1].feasible or hand:
+            break
+    best = next((v for v in verdicts if v.feasible), verdicts[0] if verdicts else None)
+    reasons = list(hand)
     if not force_ok.any():
-        reasons.append(f"a {mode} contact cannot apply the force of {action.name} here: {why[0]}")
-    elif not usable.any():
         reasons.append(
-            f"the hand would tilt {math.degrees(float(tilt[force_ok].min())):.0f} deg from its "
-            f"approach; it allows {math.degrees(gripper.approach_tolerance):.0f} deg"
+            f"a {mode} contact cannot apply the force of {ctx.action.name} here: {why[0]}"
         )
-    pool = np.flatnonzero(usable) if usable.any() else np.arange(len(poses))
-    best = int(pool[np.argmin(tilt[pool])])
+    elif best is not None and not best.feasible and not hand:
+        reasons += _contact_reasons(verdicts)
+    i = best.grasp_index if best is not None else 0
     return Option(
         name,
         mode,
         not reasons,
-        float(tilt[best]),
-        free[best],
-        poses[best],
+        best.tilt if best is not None else 0.0,
+        free[i],
+        poses[i],
         tuple(reasons),
         g.doc,
+        best.rotation if best is not None else 0.0,
+        best.turn if best is not None else 0.0,
+        best.contact if best is not None else "",
+        best.hand_pose if best is not None else None,
+    )
+
+
+def _contact_reasons(verdicts: Sequence[_Verdict]) -> list[str]:
+    if len(verdicts) == 1:
+        return [verdicts[0].reason]
+    return ["; ".join(f"by {v.contact}: {v.reason}" for v in verdicts)]
+
+
+@dataclass(frozen=True)
+class _Verdict:
+    """The best pose of one contact (a pinch's pads, a push's palm ...) and why it fails."""
+
+    contact: str
+    feasible: bool
+    grasp_index: int
+    hand_pose: np.ndarray
+    rotation: float
+    tilt: float
+    turn: float
+    reason: str
+
+    @staticmethod
+    def judge(
+        ctx: _Context,
+        name: str,
+        mode: str,
+        contact: str,
+        grasps: np.ndarray,
+        force_ok: np.ndarray,
+        dist: np.ndarray,
+        geometry: bool = True,
+    ) -> _Verdict:
+        gripper = ctx.gripper
+        hands, index = hand_poses(gripper, contact, grasps, ctx.home)
+        rotation = rotation_from(ctx.home, hands[:, :3, :3])
+        tilt, turn = gripper.orientation_error(hands[:, :3, :3])
+        oriented = gripper.allows(tilt, turn)
+        usable = force_ok[index] & oriented
+        order = _preference(rotation, dist[index], usable)
+
+        def verdict(k: int, ok: bool, reason: str) -> _Verdict:
+            return _Verdict(
+                contact,
+                ok,
+                int(index[k]),
+                hands[k],
+                float(rotation[k]),
+                float(tilt[k]),
+                float(turn[k]),
+                reason,
+            )
+
+        if not usable.any():
+            pool = np.flatnonzero(force_ok[index])
+            k = int(_preference(rotation, dist[index], force_ok[index] | ~force_ok.any())[0])
+            return verdict(k, False, _orientation_reason(gripper, tilt[pool], turn[pool]))
+        if not geometry:  # already infeasible for the hand: skip the costly part
+            return verdict(int(order[0]), False, "")
+        width = ctx.inst.grasp_width(name) if mode == "pinch" else None
+        first_reason = ""
+        for k in order[:GEOMETRY_TRIES]:
+            reason = _geometry(ctx, name, mode, contact, hands[k], grasps[index[k]], width)
+            if reason is None:
+                return verdict(k, True, "")
+            first_reason = first_reason or reason
+        return verdict(int(order[0]), False, first_reason)
+
+
+def _preference(rotation: np.ndarray, dist: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """Usable poses best first: those within ``TIE`` of the smallest rotation by distance to
+    the default free parameters, then the rest by rotation."""
+    pool = np.flatnonzero(usable)
+    if not len(pool):
+        return pool
+    best = rotation[pool].min()
+    tied = rotation[pool] <= best + TIE
+    key = np.where(tied, 0.0, 1.0)
+    second = np.where(tied, dist[pool], rotation[pool])
+    return pool[np.lexsort((dist[pool], second, key))]
+
+
+def _orientation_reason(gripper: Gripper, tilt: np.ndarray, turn: np.ndarray) -> str:
+    if not len(tilt):
+        return "no pose of this contact can apply the force"
+    if tilt.min() > gripper.approach_tolerance:
+        return (
+            f"the hand would tilt {math.degrees(float(tilt.min())):.0f} deg from its "
+            f"approach; it allows {math.degrees(gripper.approach_tolerance):.0f} deg"
+        )
+    within = tilt <= gripper.approach_tolerance
+    return (
+        f"its fingers would close {math.degrees(float(turn[within].min())):.0f} deg from "
+        f"where they can; it allows {math.degrees(gripper.closing_tolerance):.0f} deg"
     )
 
 
@@ -143,46 +313,55 @@ def _hand_reasons(inst: Instance, name: str, mode: str, gripper: Gripper) -> lis
 
 def _poses(
     inst: Instance, name: str, samples: int, reference: Any
-) -> tuple[np.ndarray, list[dict[str, float]]]:
-    """Poses over the free-parameter box, and for grasps symmetric about an axis that is not the
-    approach, over spins as well (the spin changes where the hand comes from)."""
+) -> tuple[np.ndarray, list[dict[str, float]], np.ndarray]:
+    """Poses over the free-parameter box and at the default (last), for grasps symmetric about
+    an axis that is not the approach over spins as well (the spin changes where the hand comes
+    from); with each its free parameters and its distance from the default (in range widths)."""
     ranges = inst.grasp_range(name)
-    values = spread(list(ranges.values()), samples)
-    poses = inst.grasps(name, samples, reference=reference)
+    lo, hi, default = Kinematics.of(inst).grasp_range(name)
+    values = np.vstack([spread(list(ranges.values()), samples), default[None, :]])
+    poses = np.concatenate(
+        [
+            inst.grasps(name, samples, reference=reference),
+            inst.grasp(name, reference=reference)[None],
+        ]
+    )
     free = [dict(zip(ranges, map(float, row))) for row in values]
+    span = np.where(hi > lo, hi - lo, 1.0)
+    dist = np.abs((values - default) / span).sum(axis=1)
     g = inst.concept.grasps[name]
     if not g.symmetric or g.approach_symmetric:
-        return poses, free
+        return poses, free, dist
     axes = np.asarray(inst.concept.function("grasp_axis", name).batch(inst.p, values))
     spins = np.linspace(0.0, 2 * math.pi, SPIN_STEPS, endpoint=False)
     spun = [spin_about(poses, axes.reshape(-1, 3), s) for s in spins]
-    return np.concatenate(spun), free * SPIN_STEPS
+    return np.concatenate(spun), free * SPIN_STEPS, np.tile(dist, SPIN_STEPS)
 
 
-def _tilt(poses: np.ndarray, gripper: Gripper) -> np.ndarray:
-    if gripper.approach is None:
-        return np.zeros(len(poses))
-    want = np.asarray(gripper.approach, dtype=float)
-    want = want / np.linalg.norm(want)
-    return np.arccos(np.clip(poses[:, :3, 2] @ want, -1.0, 1.0))
-
-
-def _contact(inst: Instance, action: ActionSpec, mode: str, pose: np.ndarray) -> str | None:
+def _contact(
+    inst: Instance, action: ActionSpec, mode: str, pose: np.ndarray, gripper: Gripper
+) -> str | None:
     """Why a contact of this mode cannot apply the action's force at this pose (None: it can)."""
     try:
         if action.fixed_twist:
-            return _twist_contact(action, mode)
+            return _twist_contact(action, mode, gripper)
         f = inst.force(action.name, grasp=pose)
     except ParameterError:  # on the joint's axis: a twist, and only a grip turns the hand
-        return _twist_contact(action, mode)
-    along = float(f @ pose[:3, 2])
+        return _twist_contact(action, mode, gripper)
+    return transmits(mode, f, pose)
+
+
+def transmits(mode: str, force: np.ndarray, pose: np.ndarray) -> str | None:
+    """Why a ``mode`` contact at grasp ``pose`` cannot apply the world ``force`` (None: it can):
+    a pinch holds both ways, a push only pushes into its +z, a hook only pulls towards its +x."""
+    along = float(force @ pose[:3, 2])
     if mode in ("push", "press") and along < math.cos(CONTACT_CONE):
         deg = math.degrees(math.acos(max(-1.0, min(1.0, along))))
         return f"the force is {deg:.0f} deg from the fingers' approach (at most 60 deg)"
     if mode == "hook":
         if along > math.cos(CONTACT_CONE):
             return "the force pushes the fingers in along their approach"
-        if float(f @ pose[:3, 0]) <= HOOK_GRIP:
+        if float(force @ pose[:3, 0]) <= HOOK_GRIP:
             return (
                 "the force pulls the fingers off the wall they rest on (the hook's +x side) "
                 "instead of pressing them onto it"
@@ -190,8 +369,98 @@ def _contact(inst: Instance, action: ActionSpec, mode: str, pose: np.ndarray) ->
     return None
 
 
-def _twist_contact(action: ActionSpec, mode: str) -> str | None:
-    """A twist (about a fixed axis, or a joint's axis through the grasp): only a grip turns it."""
-    if action.turns and mode == "pinch":
+def _twist_contact(action: ActionSpec, mode: str, gripper: Gripper) -> str | None:
+    """A twist (about a fixed axis, or a joint's axis through the grasp): only a grip turns it,
+    and only with a wrist that turns."""
+    if not (action.turns and mode == "pinch"):
+        return "the action turns the hand here (no linear force), which only a grip can do"
+    if not gripper.can_turn:
+        return f"the action turns the hand in place, and {gripper.name}'s wrist cannot turn"
+    return None
+
+
+# ---- geometry ----------------------------------------------------------------------------------
+
+
+def _geometry(
+    ctx: _Context,
+    name: str,
+    mode: str,
+    contact: str,
+    hand: np.ndarray,
+    grasp: np.ndarray,
+    width: float | None,
+) -> str | None:
+    """Why the hand at ``hand`` collides with the part or cannot follow the path (None: fine)."""
+    gripper = ctx.gripper
+    if mode == "pinch":
+        hold = min(width if width is not None else gripper.max_width, gripper.max_width)
+        hold = max(hold, 0.0)
+        opened = min(gripper.max_width, hold + 2 * CLEARANCE)
+    else:
+        hold = opened = 0.0
+    direction = hand[:3, :3].T @ grasp[:3, 2]  # the contact's +z in the hand frame
+    sw = sweep(gripper, direction, opened, hold)
+    path = _path(ctx, hand)
+    if path is not None and mode == "pinch":
+        reason = _path_orientation(gripper, path)
+        if reason:
+            return reason
+    q = np.array([ctx.inst.q, ctx.inst.q])
+    found = ctx.scene.deepest([sw.approach, sw.closing], [hand, hand], q)
+    for (depth, part), when in zip(found, ("while coming in", "while closing")):
+        if depth > PENETRATION:
+            return f"the {part} enters the part {depth * 1e3:.0f} mm {when}"
+    if path is None:
         return None
-    return "the action turns the hand here (no linear force), which only a grip can do"
+    # along the path the hand rides its link: only the other links can come into its way
+    poses, qs = path[0][1:], path[1][1:]
+    link = ctx.inst.concept.grasps[name].link
+    found = ctx.scene.deepest([sw.hold] * len(poses), list(poses), qs, skip=link)
+    for (depth, part), qk in zip(found, qs):
+        if depth > PENETRATION:
+            at = f"{ctx.action.joint} = {float(qk[_joint(ctx)]):.3g}"
+            return f"the {part} enters the part {depth * 1e3:.0f} mm along the path (at {at})"
+    return None
+
+
+def _joint(ctx: _Context) -> int:
+    """The index in q of the action's joint (only called for actions along a joint)."""
+    assert ctx.action.joint is not None
+    return ctx.inst.concept.joint_index[ctx.action.joint]
+
+
+def _path(ctx: _Context, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The hand's poses along the follow path and the joint vectors they belong to."""
+    if ctx.end is None:
+        return None
+    try:
+        poses = ctx.inst.follow(ctx.action.name, grasp=hand, to=ctx.end, steps=PATH_STEPS)
+    except GraceError:
+        return None
+    qs = np.tile(ctx.inst.q, (PATH_STEPS, 1))
+    i = _joint(ctx)
+    qs[:, i] = np.linspace(float(ctx.inst.q[i]), ctx.end, PATH_STEPS)
+    return poses, qs
+
+
+def _path_orientation(gripper: Gripper, path: tuple[np.ndarray, np.ndarray]) -> str | None:
+    """A pinch carries the hand rigidly: its rotation along the path must stay reachable."""
+    poses = path[0]
+    if not gripper.can_turn:
+        rel = np.einsum("ji,njk->nik", poses[0, :3, :3], poses[:, :3, :3])
+        turned = np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0))
+        if turned.max() > TURN_SLACK:
+            return (
+                f"the path turns the hand {math.degrees(float(turned.max())):.0f} deg and "
+                f"{gripper.name}'s wrist cannot turn"
+            )
+    tilt, turn = gripper.orientation_error(poses[:, :3, :3])
+    bad = ~gripper.allows(tilt, turn)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        return (
+            f"along the path the hand would tilt {math.degrees(float(tilt[k])):.0f} deg "
+            f"and its fingers turn {math.degrees(float(turn[k])):.0f} deg from where it can"
+        )
+    return None

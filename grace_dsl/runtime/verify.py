@@ -553,7 +553,8 @@ class _Run:
             message = f"the origin is {d * 1e3:.2f} mm from the part it grasps"
             self._record(inst, grasp, s, _at_most("near", float(d), NEAR, "mm", message))
         if mode == "pinch":
-            self._check_pinch(inst, geo, samples, held)
+            if self.gripper.can_close:  # a hand that cannot close makes no pinch (rank says so)
+                self._check_pinch(inst, geo, samples, held)
             return
         self._check_penetration(inst, geo, samples, [0.0] * len(samples))
         if mode in ("push", "press"):

@@ -24,6 +24,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_grasp_ik.py",
         "bench_ik.py",
         "bench_plan.py",
+        "bench_rank_agreement.py",
         "bench_render.py",
         "bench_repeat.py",
         "bench_runtime.py",
