@@ -38,8 +38,8 @@ import numpy as np
 from grace_dsl.runtime.contact import CLEAR, Scene, hand_poses, rotation_from, sweep
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.inputs import MAX_RANK_SAMPLES, as_count
-from grace_dsl.runtime.masks import has_masks, present
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.masks import has_masks, present
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
 from grace_dsl.runtime.symmetry import HAND_HOME, spin_about
