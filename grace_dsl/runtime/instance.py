@@ -18,7 +18,12 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from grace_dsl.runtime.concept import check_requirements, suggest
+from grace_dsl.runtime.concept import (
+    check_domain,
+    check_ranges_mode,
+    check_requirements,
+    suggest,
+)
 from grace_dsl.runtime.errors import EvaluationError, GraceError, ParameterError, UnknownNameError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.inputs import (
@@ -81,9 +86,25 @@ class Instance:
     _ranges: dict[str, tuple[np.ndarray, ...]] = field(default_factory=dict, repr=False)
 
     @staticmethod
-    def create(concept: Concept, pose: Any, joints: Any, params: Mapping[str, Any]) -> Instance:
-        """Validate parameters, requirements, joint values and pose (``Concept.instantiate``)."""
-        p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing kwargs
+    def create(
+        concept: Concept,
+        pose: Any,
+        joints: Any,
+        params: Mapping[str, Any],
+        ranges: str = "typical",
+    ) -> Instance:
+        """Validate parameters, requirements, joint values and pose (``Concept.instantiate``).
+
+        ``ranges="typical"`` checks each parameter against its declared range. ``"valid"``
+        checks its domain instead (``check_domain``) and then the instance itself: every joint
+        range and every grasp's free-parameter range non-empty, every shape well-formed
+        (``ShapeTree.check``), since only the typical ranges are verified ahead of time."""
+        valid = ranges != "typical" and check_ranges_mode(ranges) == "valid"
+        if valid:
+            p = concept._valid_packer.pack(params, concept.name)
+            check_domain(concept.params, p, concept.name)
+        else:
+            p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing
         held, low, high = concept.function("instance_checks")(p)  # requires and joint ranges
         holds = held.ravel().tolist()
         if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
@@ -93,7 +114,10 @@ class Instance:
         q = np.zeros(len(concept.moving_joints))
         if joints is not None:
             _set_joints(concept, q, joints, limits)
-        return Instance(concept, _read_only(p), _read_only(q), _read_only(as_pose(pose)), limits)
+        inst = Instance(concept, _read_only(p), _read_only(q), _read_only(as_pose(pose)), limits)
+        if valid:
+            _check_valid(inst)
+        return inst
 
     def with_joints(self, joints: Mapping[str, Any] | None = None, /, **values: Any) -> Instance:
         """The same instance with some joints moved (the others keep their values): only the
@@ -468,6 +492,34 @@ def _check_limits(concept: Concept, limits: _Limits) -> None:
                 f"{concept.name}: the range of joint {name} is [{a:g}, {b:g}] at these "
                 f"parameters ({concept.joints[name].where}); check its range formula"
             )
+
+
+def _check_valid(inst: Instance) -> None:
+    """The checks ``ranges="valid"`` adds: a ``ParameterError`` naming the joint, grasp or
+    shape that the parameters leave empty or malformed."""
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    concept = inst.concept
+    for name, a, b in zip(concept.moving_joints, *inst._limits):
+        if not a <= b:
+            raise ParameterError(
+                f"{concept.name}: the range of joint {name} is empty at these parameters "
+                f"([{a:g}, {b:g}], {concept.joints[name].where})"
+            )
+    for spec in concept.grasps.values():
+        if not spec.free_names:
+            continue
+        lo, hi, default = (
+            np.asarray(x, float).reshape(-1)
+            for x in concept.function("grasp_range", spec.name)(inst.p)
+        )
+        if not (np.all(lo <= hi) and np.all(np.isfinite(default))):
+            pairs = _pairs(spec.free_names, lo.tolist(), hi.tolist(), default.tolist())
+            raise ParameterError(
+                f"{concept.name}: the range of grasp {spec.name}'s free parameters is empty at "
+                f"these parameters ({pairs}; {spec.where})"
+            )
+    ShapeTree(inst).check()  # a ShapeError (a ParameterError) names the shape
 
 
 def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -> None:
