@@ -433,23 +433,72 @@ class Instance:
         ref = None if reference is None else as_rotation(reference)
         return rank(self, action, gripper, samples, ref)
 
-    def follow(self, action: str, /, grasp: Any, to: float, steps: int = 32) -> np.ndarray:
-        """The gripper path (steps, 4, 4) as the action's joint moves from its value to ``to``."""
+    def follow(
+        self,
+        action: str,
+        /,
+        grasp: Any,
+        to: float | None = None,
+        steps: int = 32,
+        *,
+        distance: float | None = None,
+        beyond_range: bool = False,
+    ) -> np.ndarray:
+        """The gripper path (steps, 4, 4) of ``action`` from the pose ``grasp``.
+
+        Along a joint: the joint moves from its value to ``to``, which must lie in the joint's
+        range unless ``beyond_range=True`` (the real object's stop may lie past the concept's).
+        Toward a fixed direction (no joint): the hand travels ``distance`` (metres) along the
+        action's force; for ``turn``/``rotate`` with a direction, it turns ``distance`` radians
+        about that axis through the grasp's origin.
+        """
         spec = self._action_spec(action)
-        joint = spec.joint
-        if joint is None:
-            raise ParameterError(f"action {action} moves no joint; it has a fixed direction")
+        if not isinstance(beyond_range, (bool, np.bool_)):
+            raise ParameterError(f"beyond_range is True or False, not {beyond_range!r:.60}")
         steps = as_count("steps", steps, 2, MAX_STEPS)
-        held = _grasp_pose(grasp)
+        if spec.joint is None:
+            if to is not None:
+                raise ParameterError(
+                    f"action {action} moves no joint, so it has no joint value to go to: give "
+                    f"how far the hand travels, inst.follow({action!r}, grasp=..., distance=d)"
+                )
+            if distance is None:
+                raise ParameterError(
+                    f"action {action} moves no joint: give how far the hand travels, "
+                    f"inst.follow({action!r}, grasp=..., distance=d)"
+                )
+            return self._follow_direction(spec, _grasp_pose(grasp), distance, steps)
+        if distance is not None:
+            raise ParameterError(
+                f"action {action} moves joint {spec.joint}: give the joint value to reach, "
+                f"inst.follow({action!r}, grasp=..., to=q), not a distance"
+            )
+        if to is None:
+            raise ParameterError(
+                f"action {action} moves joint {spec.joint}: give the joint value to reach, "
+                f"inst.follow({action!r}, grasp=..., to=q)"
+            )
+        return self._follow_joint(spec, _grasp_pose(grasp), to, steps, bool(beyond_range))
+
+    def _follow_joint(
+        self, spec: ActionSpec, held: np.ndarray, to: Any, steps: int, beyond: bool
+    ) -> np.ndarray:
+        joint = spec.joint
+        assert joint is not None
         i = self.concept.joint_index[joint]
         lo, hi = self._limits[0][i], self._limits[1][i]
         to = as_number(f"joint {joint}", to)
-        if not (lo - _TOL <= to <= hi + _TOL and math.isfinite(to)):
-            raise ParameterError(f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}]")
+        if not math.isfinite(to):
+            raise ParameterError(f"{joint} cannot reach {to!r}: a joint value is finite")
+        if not beyond and not lo - _TOL <= to <= hi + _TOL:
+            raise ParameterError(
+                f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}] (pass "
+                "beyond_range=True when the real object's stop lies past the concept's)"
+            )
         q0 = float(self.q[i])
         if spec.sign * (to - q0) < 0:
             raise ParameterError(
-                f"{action} moves {joint} {'up' if spec.opening else 'down'} from {q0:g}, "
+                f"{spec.name} moves {joint} {'up' if spec.opening else 'down'} from {q0:g}, "
                 f"so it cannot end at {to:g}; use the action of the other sense"
             )
         link = self.concept.function("link", self.concept.joints[joint].child)
@@ -459,6 +508,29 @@ class Instance:
         qs[:, i] = np.linspace(q0, to, steps)
         poses = np.asarray(link.batch(self.p, qs), float).reshape(steps, 4, 4)
         path = np.einsum("ij,njk,kl->nil", self.pose, poses, attached)
+        if not _finite(path):
+            raise self._evaluation(f"the path of {spec.name}", spec.where)
+        return path
+
+    def _follow_direction(
+        self, spec: ActionSpec, held: np.ndarray, distance: Any, steps: int
+    ) -> np.ndarray:
+        """Translate ``held`` along the action's force (or turn it about its fixed axis)."""
+        unit = "rad" if spec.fixed_twist else "m"
+        d = as_number(f"distance ({unit})", distance)
+        if not (math.isfinite(d) and d >= 0):
+            raise ParameterError(
+                f"distance must be a finite travel >= 0 ({unit}) in the sense of {spec.name}, "
+                f"got {distance!r:.60}; the action of the other sense goes back"
+            )
+        t = np.linspace(0.0, d, steps)
+        path = np.tile(held, (steps, 1, 1))
+        if spec.fixed_twist:
+            axis = self.twist(spec.name)
+            path[:, :3, :3] = _rotations(axis, t) @ held[:3, :3]
+        else:
+            f = self.force(spec.name, grasp=held)
+            path[:, :3, 3] = held[:3, 3] + np.outer(t, f)
         if not _finite(path):
             raise self._evaluation(f"the path of {spec.name}", spec.where)
         return path
@@ -545,6 +617,13 @@ def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -
                 f"joint {name} = {v!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
             )
         q[i] = v
+
+
+def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations about the unit ``axis`` by each angle (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
 
 
 def _grasp_pose(grasp: Any) -> np.ndarray:

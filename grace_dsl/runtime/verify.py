@@ -39,6 +39,8 @@ half of those), so formulas that break at a bound are found.
 At a ``scale`` other than 1 (``eacc verify --scale 0.3,2``) every length parameter's range is
 multiplied by it (angles, counts and choices keep theirs) and the instances are made with
 ``ranges="valid"``: the concept must stay well-formed and pass every check on objects that size.
+The gripper keeps its size (a robot's hand does not grow with the object): a pinch wider than it
+opens is its limit, not the concept's, and is noted in the report rather than failed.
 When the scaled defaults break a ``require`` the concept is not drawn at that scale; the report
 names the requirement that forbids it (``ConceptReport.forbidden``), which is not a failure.
 
@@ -345,7 +347,7 @@ def verify_concept(
             )
     specs = scaled_specs(concept, scale)
     rng = np.random.default_rng(seed)
-    run = _Run(concept, gripper, rng)
+    run = _Run(concept, gripper, rng, hand_limits=scale != 1.0)
     accepted = attempts = 0
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
@@ -367,6 +369,11 @@ def verify_concept(
         note = (
             f"only {accepted} of {attempts} draws satisfy the requirements "
             f"({accepted / attempts:.1%}); stopped after {cap} attempts"
+        )
+    if run.too_wide:
+        wide = ", ".join(sorted(run.too_wide))
+        note = "; ".join(
+            x for x in (note, f"wider than {gripper.name} opens in some draws: {wide}") if x
         )
     return ConceptReport(
         concept.name, accepted, attempts, dict(run.evaluated), run.failures, note, scale
@@ -491,8 +498,18 @@ def _at_most(check: str, value: float, limit: float, unit: str, message: str) ->
 class _Run:
     """The checks of one concept, accumulating counts and failures over its draws."""
 
-    def __init__(self, concept: Concept, gripper: Gripper, rng: np.random.Generator):
+    def __init__(
+        self,
+        concept: Concept,
+        gripper: Gripper,
+        rng: np.random.Generator,
+        hand_limits: bool = False,
+    ):
         self.concept, self.gripper, self.rng = concept, gripper, rng
+        # at a scale other than 1, a pinch wider than the hand opens is the hand's limit (it
+        # does not grow with the object), not the concept's: noted, not failed
+        self.hand_limits = hand_limits
+        self.too_wide: set[str] = set()
         self.evaluated: dict[str, int] = {c: 0 for c in CHECKS}
         self._failures: list[Failure] = []
         self._worst: dict[tuple[str, str], tuple[float, Failure]] = {}
@@ -668,6 +685,10 @@ class _Run:
             )
             miss = max(width - top, -width)
             measure = _Measure("width", fits, miss, width * 1e3, top * 1e3, "mm", message)
+            if self.hand_limits and width > top:
+                self.evaluated["width"] += 1
+                self.too_wide.add(s.grasp)
+                continue
             self._record(inst, s.grasp, s, measure)
             if fits:
                 fitting.append((s, width))
