@@ -903,7 +903,8 @@ def _display(inst: Instance, grasp: str | None, free: Mapping[str, float]) -> di
 
 def _si(inst: Instance, free: Mapping[str, float]) -> dict[str, Any]:
     """The same values in SI, JSON-ready: ``concept.instantiate(pose=..., joints=..., **params)``
-    and ``inst.grasp(name, **free)`` reproduce the failure."""
+    (with ``ranges="valid"`` for a report at a scale other than 1) and
+    ``inst.grasp(name, **free)`` reproduce the failure."""
     params = {k: list(v) if isinstance(v, tuple) else v for k, v in inst.params.items()}
     joints = {n: float(q) for n, q in zip(inst.concept.moving_joints, inst.q)}
     return {
