@@ -8,6 +8,7 @@ not compile), 2 on a usage error such as an unknown concept.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -40,6 +41,30 @@ def add_verify_arguments(p: argparse.ArgumentParser) -> None:
         help="the hand: a shipped one (panda, topdown, pusher) or a .toml description file",
     )
     p.add_argument("--json", action="store_true", help="print the whole report as JSON")
+    p.add_argument(
+        "--scale",
+        type=_scales,
+        default=(1.0,),
+        metavar="S[,S...]",
+        help="multiply every length range by each factor, e.g. 0.3,2 (instances are made with "
+        'ranges="valid"; default 1)',
+    )
+
+
+def _scales(text: str) -> tuple[float, ...]:
+    """``0.3,2`` as (0.3, 2.0): finite factors > 0."""
+    out = []
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected numbers such as 0.3,2, got {text!r}"
+            ) from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"a scale is a finite number > 0, got {part!r}")
+        out.append(value)
+    return tuple(dict.fromkeys(out))
 
 
 def _positive(text: str) -> int:
@@ -59,17 +84,32 @@ def run_verify(args: argparse.Namespace, lib: Library) -> int:
     try:
         hand = Gripper.load(args.gripper)
     except ParameterError as exc:
-        sys.stderr.write(f"eacc verify: {exc}\n")
+        sys.stderr.write(f"eacc verify: {exc}
+")
         return 2
-    with _progress() as progress:
-        report = verify_library(
-            lib, names, draws=args.draws, seed=args.seed, gripper=hand, progress=progress
-        )
+    reports = []
+    for scale in args.scale:
+        with _progress() as progress:
+            reports.append(
+                verify_library(
+                    lib,
+                    names,
+                    draws=args.draws,
+                    seed=args.seed,
+                    gripper=hand,
+                    progress=progress,
+                    scale=scale,
+                )
+            )
     if args.json:
-        print_json(report.to_json())
+        if len(reports) == 1:
+            print_json(reports[0].to_json())
+        else:
+            print_json({"ok": all(r.ok for r in reports), "runs": [r.to_json() for r in reports]})
     else:
-        _print_report(report)
-    return 0 if report.ok else 1
+        for report in reports:
+            _print_report(report)
+    return 0 if all(r.ok for r in reports) else 1
 
 
 def _chosen(lib: Library, wanted: list[str]) -> list[str] | None:
@@ -108,9 +148,10 @@ def _progress() -> Iterator[Callable[[str, int, int], None] | None]:
 
 
 def _print_report(report: VerifyReport) -> None:
+    at = f", every length x{report.scale:g}" if report.scale != 1.0 else ""
     print_table(
         f"{len(report.concepts)} concepts, {report.draws} draws each (seed {report.seed}, "
-        f"{report.gripper} gripper)",
+        f"{report.gripper} gripper{at})",
         ["concept", "draws", "acceptance", "checks", "failures", "note"],
         [
             [

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -106,11 +106,22 @@ class ParamSpec:
         lo, hi = np.atleast_1d(self.lo), np.atleast_1d(self.hi)
         # written so that a NaN bound fails the check instead of disabling it
         if not (np.all(arr >= lo - RANGE_SLACK) and np.all(arr <= hi + RANGE_SLACK)):
+            hint = (
+                '; the range is the typical real-world spread: instantiate(..., ranges="valid")'
+                " accepts any value the concept's requirements and shapes allow"
+                if self.kind in ("num", "vec", "int") and np.all(np.isfinite(arr))
+                else ""
+            )
             raise ParameterError(
                 f"{self.name} = {format_si(arr, self.dim)} is outside its range "
                 f"[{format_si(lo, self.dim)}, {format_si(hi, self.dim)}] (values are in SI units: "
-                f"{_SI_UNITS.get(self.dim or '', 'no unit')})"
+                f"{_SI_UNITS.get(self.dim or '', 'no unit')}){hint}"
             )
+
+    def unbounded(self) -> ParamSpec:
+        """The same parameter without its typical range (``ranges="valid"`` packs with it and
+        checks the domain with :func:`check_domain` instead)."""
+        return replace(self, lo=None, hi=None)
 
     def decode(self, entries: np.ndarray) -> Any:
         if self.kind == "choice":
@@ -122,6 +133,60 @@ class ParamSpec:
 
 
 _SI_UNITS = {"length": "metres", "angle": "radians"}
+
+RANGES = ("typical", "valid")
+"""What ``Concept.instantiate(..., ranges=...)`` checks the parameters against: ``typical`` the
+declared ranges (the real-world spread that sampling, ``eacc verify`` and perception priors use),
+``valid`` the domain below plus the instance's own validity (see ``Instance.create``)."""
+
+ONE_TURN = 2 * math.pi  # rad: the largest angle magnitude a valid parameter may take
+
+
+def check_ranges_mode(ranges: Any) -> str:
+    """``ranges`` as given to ``instantiate``, or a ``ParameterError`` naming the choices."""
+    if not isinstance(ranges, str) or ranges not in RANGES:
+        raise ParameterError(f'ranges must be "typical" or "valid", not {ranges!r:.60}')
+    return ranges
+
+
+def check_domain(specs: Sequence[ParamSpec], p: np.ndarray, concept: str) -> None:
+    """Raise unless every number of ``p`` lies in its parameter's valid domain.
+
+    Why: outside its typical range a value is still a real object as long as it keeps the sign
+    that range gives it (a length whose range is positive stays positive, one that starts at 0
+    stays non-negative, a signed offset may take any value) and an angle stays within one turn
+    either way; requirements and shapes are checked by the caller.
+    """
+    for s in specs:
+        if s.kind not in ("num", "vec", "int") or s.lo is None or s.hi is None:
+            continue
+        lo, hi = np.atleast_1d(np.asarray(s.lo, float)), np.atleast_1d(np.asarray(s.hi, float))
+        values = p[s.offset : s.offset + s.size]
+        for k, v in enumerate(values.tolist()):
+            problem = _domain_problem(float(lo[k]), float(hi[k]), v, s.dim)
+            if problem:
+                part = f"{s.name}[{k}]" if s.size > 1 else s.name
+                shown = format_si(np.array([v]), s.dim)
+                typical = f"[{format_si(lo[k : k + 1], s.dim)}, {format_si(hi[k : k + 1], s.dim)}]"
+                raise ParameterError(
+                    f"{concept}: {part} = {shown} is not a valid value: {problem} "
+                    f"(its typical range is {typical})"
+                )
+
+
+def _domain_problem(lo: float, hi: float, v: float, dim: str | None) -> str:
+    """Why ``v`` leaves the domain of a parameter whose typical range is [lo, hi], or ''."""
+    if lo > 0 and not v > 0:
+        return "it must be positive"
+    if lo == 0 and not v >= 0:
+        return "it must not be negative"
+    if hi < 0 and not v < 0:
+        return "it must be negative"
+    if hi == 0 and not v <= 0:
+        return "it must not be positive"
+    if dim == "angle" and not abs(v) <= ONE_TURN + RANGE_SLACK:
+        return "an angle lies within one turn (360deg) either way"
+    return ""
 
 
 def _has_bool(value: Any) -> bool:

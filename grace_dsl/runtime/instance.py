@@ -19,7 +19,12 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from grace_dsl.runtime import masks
-from grace_dsl.runtime.concept import check_requirements, suggest
+from grace_dsl.runtime.concept import (
+    check_domain,
+    check_ranges_mode,
+    check_requirements,
+    suggest,
+)
 from grace_dsl.runtime.errors import EvaluationError, GraceError, ParameterError, UnknownNameError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.inputs import (
@@ -82,9 +87,25 @@ class Instance:
     _ranges: dict[str, tuple[np.ndarray, ...]] = field(default_factory=dict, repr=False)
 
     @staticmethod
-    def create(concept: Concept, pose: Any, joints: Any, params: Mapping[str, Any]) -> Instance:
-        """Validate parameters, requirements, joint values and pose (``Concept.instantiate``)."""
-        p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing kwargs
+    def create(
+        concept: Concept,
+        pose: Any,
+        joints: Any,
+        params: Mapping[str, Any],
+        ranges: str = "typical",
+    ) -> Instance:
+        """Validate parameters, requirements, joint values and pose (``Concept.instantiate``).
+
+        ``ranges="typical"`` checks each parameter against its declared range. ``"valid"``
+        checks its domain instead (``check_domain``) and then the instance itself: every joint
+        range and every grasp's free-parameter range non-empty, every shape well-formed
+        (``ShapeTree.check``), since only the typical ranges are verified ahead of time."""
+        valid = ranges != "typical" and check_ranges_mode(ranges) == "valid"
+        if valid:
+            p = concept._valid_packer.pack(params, concept.name)
+            check_domain(concept.params, p, concept.name)
+        else:
+            p = concept._packer.pack(params, concept.name)  # concept.pack without re-packing
         held, low, high = concept.function("instance_checks")(p)  # requires and joint ranges
         holds = held.ravel().tolist()
         if holds.count(1.0) != len(holds):  # NaN counts as false, like every value but 1
@@ -94,7 +115,10 @@ class Instance:
         q = np.zeros(len(concept.moving_joints))
         if joints is not None:
             _set_joints(concept, q, joints, limits)
-        return Instance(concept, _read_only(p), _read_only(q), _read_only(as_pose(pose)), limits)
+        inst = Instance(concept, _read_only(p), _read_only(q), _read_only(as_pose(pose)), limits)
+        if valid:
+            _check_valid(inst)
+        return inst
 
     def with_joints(self, joints: Mapping[str, Any] | None = None, /, **values: Any) -> Instance:
         """The same instance with some joints moved (the others keep their values): only the
@@ -446,23 +470,72 @@ class Instance:
         ref = None if reference is None else as_rotation(reference)
         return rank(self, action, gripper, samples, ref)
 
-    def follow(self, action: str, /, grasp: Any, to: float, steps: int = 32) -> np.ndarray:
-        """The gripper path (steps, 4, 4) as the action's joint moves from its value to ``to``."""
+    def follow(
+        self,
+        action: str,
+        /,
+        grasp: Any,
+        to: float | None = None,
+        steps: int = 32,
+        *,
+        distance: float | None = None,
+        beyond_range: bool = False,
+    ) -> np.ndarray:
+        """The gripper path (steps, 4, 4) of ``action`` from the pose ``grasp``.
+
+        Along a joint: the joint moves from its value to ``to``, which must lie in the joint's
+        range unless ``beyond_range=True`` (the real object's stop may lie past the concept's).
+        Toward a fixed direction (no joint): the hand travels ``distance`` (metres) along the
+        action's force; for ``turn``/``rotate`` with a direction, it turns ``distance`` radians
+        about that axis through the grasp's origin.
+        """
         spec = self._action_spec(action)
-        joint = spec.joint
-        if joint is None:
-            raise ParameterError(f"action {action} moves no joint; it has a fixed direction")
+        if not isinstance(beyond_range, (bool, np.bool_)):
+            raise ParameterError(f"beyond_range is True or False, not {beyond_range!r:.60}")
         steps = as_count("steps", steps, 2, MAX_STEPS)
-        held = _grasp_pose(grasp)
+        if spec.joint is None:
+            if to is not None:
+                raise ParameterError(
+                    f"action {action} moves no joint, so it has no joint value to go to: give "
+                    f"how far the hand travels, inst.follow({action!r}, grasp=..., distance=d)"
+                )
+            if distance is None:
+                raise ParameterError(
+                    f"action {action} moves no joint: give how far the hand travels, "
+                    f"inst.follow({action!r}, grasp=..., distance=d)"
+                )
+            return self._follow_direction(spec, _grasp_pose(grasp), distance, steps)
+        if distance is not None:
+            raise ParameterError(
+                f"action {action} moves joint {spec.joint}: give the joint value to reach, "
+                f"inst.follow({action!r}, grasp=..., to=q), not a distance"
+            )
+        if to is None:
+            raise ParameterError(
+                f"action {action} moves joint {spec.joint}: give the joint value to reach, "
+                f"inst.follow({action!r}, grasp=..., to=q)"
+            )
+        return self._follow_joint(spec, _grasp_pose(grasp), to, steps, bool(beyond_range))
+
+    def _follow_joint(
+        self, spec: ActionSpec, held: np.ndarray, to: Any, steps: int, beyond: bool
+    ) -> np.ndarray:
+        joint = spec.joint
+        assert joint is not None
         i = self.concept.joint_index[joint]
         lo, hi = self._limits[0][i], self._limits[1][i]
         to = as_number(f"joint {joint}", to)
-        if not (lo - _TOL <= to <= hi + _TOL and math.isfinite(to)):
-            raise ParameterError(f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}]")
+        if not math.isfinite(to):
+            raise ParameterError(f"{joint} cannot reach {to!r}: a joint value is finite")
+        if not beyond and not lo - _TOL <= to <= hi + _TOL:
+            raise ParameterError(
+                f"{joint} cannot reach {to!r}: its range is [{lo:g}, {hi:g}] (pass "
+                "beyond_range=True when the real object's stop lies past the concept's)"
+            )
         q0 = float(self.q[i])
         if spec.sign * (to - q0) < 0:
             raise ParameterError(
-                f"{action} moves {joint} {'up' if spec.opening else 'down'} from {q0:g}, "
+                f"{spec.name} moves {joint} {'up' if spec.opening else 'down'} from {q0:g}, "
                 f"so it cannot end at {to:g}; use the action of the other sense"
             )
         link = self.concept.function("link", self.concept.joints[joint].child)
@@ -472,6 +545,29 @@ class Instance:
         qs[:, i] = np.linspace(q0, to, steps)
         poses = np.asarray(link.batch(self.p, qs), float).reshape(steps, 4, 4)
         path = np.einsum("ij,njk,kl->nil", self.pose, poses, attached)
+        if not _finite(path):
+            raise self._evaluation(f"the path of {spec.name}", spec.where)
+        return path
+
+    def _follow_direction(
+        self, spec: ActionSpec, held: np.ndarray, distance: Any, steps: int
+    ) -> np.ndarray:
+        """Translate ``held`` along the action's force (or turn it about its fixed axis)."""
+        unit = "rad" if spec.fixed_twist else "m"
+        d = as_number(f"distance ({unit})", distance)
+        if not (math.isfinite(d) and d >= 0):
+            raise ParameterError(
+                f"distance must be a finite travel >= 0 ({unit}) in the sense of {spec.name}, "
+                f"got {distance!r:.60}; the action of the other sense goes back"
+            )
+        t = np.linspace(0.0, d, steps)
+        path = np.tile(held, (steps, 1, 1))
+        if spec.fixed_twist:
+            axis = self.twist(spec.name)
+            path[:, :3, :3] = _rotations(axis, t) @ held[:3, :3]
+        else:
+            f = self.force(spec.name, grasp=held)
+            path[:, :3, 3] = held[:3, 3] + np.outer(t, f)
         if not _finite(path):
             raise self._evaluation(f"the path of {spec.name}", spec.where)
         return path
@@ -507,6 +603,34 @@ def _check_limits(concept: Concept, limits: _Limits) -> None:
             )
 
 
+def _check_valid(inst: Instance) -> None:
+    """The checks ``ranges="valid"`` adds: a ``ParameterError`` naming the joint, grasp or
+    shape that the parameters leave empty or malformed."""
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    concept = inst.concept
+    for name, a, b in zip(concept.moving_joints, *inst._limits):
+        if not a <= b:
+            raise ParameterError(
+                f"{concept.name}: the range of joint {name} is empty at these parameters "
+                f"([{a:g}, {b:g}], {concept.joints[name].where})"
+            )
+    for spec in concept.grasps.values():
+        if not spec.free_names:
+            continue
+        lo, hi, default = (
+            np.asarray(x, float).reshape(-1)
+            for x in concept.function("grasp_range", spec.name)(inst.p)
+        )
+        if not (np.all(lo <= hi) and np.all(np.isfinite(default))):
+            pairs = _pairs(spec.free_names, lo.tolist(), hi.tolist(), default.tolist())
+            raise ParameterError(
+                f"{concept.name}: the range of grasp {spec.name}'s free parameters is empty at "
+                f"these parameters ({pairs}; {spec.where})"
+            )
+    ShapeTree(inst).check()  # a ShapeError (a ParameterError) names the shape
+
+
 def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -> None:
     """Write validated joint values into ``q``."""
     if not isinstance(joints, Mapping):
@@ -530,6 +654,13 @@ def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -
                 f"joint {name} = {v!r} is outside its range [{lo[i]:g}, {hi[i]:g}]"
             )
         q[i] = v
+
+
+def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations about the unit ``axis`` by each angle (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
 
 
 def _grasp_pose(grasp: Any) -> np.ndarray:

@@ -73,6 +73,8 @@ class Concept:
             {n: i for i, n in enumerate(self.moving_joints)}
         )
         self._packer = ParamPacker.of(self.params)
+        # ranges="valid": no typical range, the domain is checked afterwards (check_domain)
+        self._valid_packer = ParamPacker.of(tuple(s.unbounded() for s in self.params))
         self._evaluators: dict[str, native.Evaluator] = {}  # key -> evaluator, on first use
 
     def __repr__(self) -> str:
@@ -109,13 +111,19 @@ class Concept:
         pose: Any = None,
         joints: Mapping[str, Any] | None = None,
         params: Mapping[str, Any] | None = None,
+        ranges: str = "typical",
         **values: Any,
     ) -> Instance:
         """An instance at ``pose`` (4x4, world from concept) with joint values and parameters.
 
         Parameters are keywords, or the mapping ``params`` (which also carries names that are
-        arguments here: a parameter called ``pose``, ``joints`` or ``params``)."""
-        return Instance.create(self, pose, joints, merge_names("params", params, values))
+        arguments here: a parameter called ``pose``, ``joints``, ``params`` or ``ranges``).
+        ``ranges="typical"`` (the default) keeps every parameter inside its declared range, the
+        real-world spread the library is verified over; ``ranges="valid"`` accepts any value
+        whose instance is still well-formed (docs/language.md, "Typical and valid values")."""
+        return Instance.create(
+            self, pose, joints, merge_names("params", params, values), ranges=ranges
+        )
 
 
 class Library(Mapping[str, Concept]):

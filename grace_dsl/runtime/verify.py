@@ -36,6 +36,14 @@ Before those, every draw must be computable, or it fails instead of crashing the
 Each continuous parameter takes one of its range's ends in ``1 / ENDS`` of the draws (each end
 half of those), so formulas that break at a bound are found.
 
+At a ``scale`` other than 1 (``eacc verify --scale 0.3,2``) every length parameter's range is
+multiplied by it (angles, counts and choices keep theirs) and the instances are made with
+``ranges="valid"``: the concept must stay well-formed and pass every check on objects that size.
+The gripper keeps its size (a robot's hand does not grow with the object): a pinch wider than it
+opens is its limit, not the concept's, and is noted in the report rather than failed.
+When the scaled defaults break a ``require`` the concept is not drawn at that scale; the report
+names the requirement that forbids it (``ConceptReport.forbidden``), which is not a failure.
+
 Each failure keeps the values that caused it, in display units (mm, deg) and in SI (to reproduce
 it with ``concept.instantiate``). Per draw, the worst sample of each check and member is kept.
 """
@@ -51,6 +59,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grace_dsl.compiler.types import format_si
+from grace_dsl.runtime.concept import ParamSpec
 from grace_dsl.runtime.errors import (
     EvaluationError,
     GraceError,
@@ -145,6 +154,8 @@ class ConceptReport:
     evaluated: dict[str, int]  # check -> samples evaluated
     failures: tuple[Failure, ...]
     note: str = ""  # e.g. why fewer draws than asked were accepted
+    scale: float = 1.0  # the factor on every length parameter's range
+    forbidden: str = ""  # the requirement the scaled defaults break: not drawn at this scale
 
     @property
     def rejected(self) -> int:
@@ -163,6 +174,8 @@ class ConceptReport:
             "rejected": self.rejected,
             "evaluated": dict(self.evaluated),
             "note": self.note,
+            "scale": self.scale,
+            "forbidden": self.forbidden,
             "failures": [f.to_json() for f in self.failures],
         }
 
@@ -175,6 +188,8 @@ class ConceptReport:
             {k: int(v) for k, v in d["evaluated"].items()},
             tuple(Failure.from_json(f) for f in d["failures"]),
             d.get("note", ""),
+            float(d.get("scale", 1.0)),
+            d.get("forbidden", ""),
         )
 
 
@@ -186,6 +201,7 @@ class VerifyReport:
     seed: int
     gripper: str
     concepts: tuple[ConceptReport, ...]
+    scale: float = 1.0
 
     @property
     def ok(self) -> bool:
@@ -201,6 +217,7 @@ class VerifyReport:
             "draws": self.draws,
             "seed": self.seed,
             "gripper": self.gripper,
+            "scale": self.scale,
             "concepts": [c.to_json() for c in self.concepts],
         }
 
@@ -211,6 +228,7 @@ class VerifyReport:
             int(d["seed"]),
             d["gripper"],
             tuple(ConceptReport.from_json(c) for c in d["concepts"]),
+            float(d.get("scale", 1.0)),
         )
 
 
@@ -224,23 +242,75 @@ def verify_library(
     seed: int = 0,
     gripper: Gripper | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    scale: float = 1.0,
 ) -> VerifyReport:
-    """Verify ``names`` (default: every concept that is not a primitive) of ``lib``.
+    """Verify ``names`` (default: every concept that is not a primitive) of ``lib``, with every
+    length range multiplied by ``scale`` (see the module docstring).
 
     Each concept gets its own stream of draws derived from ``seed`` and its name, so verifying a
     subset gives the same draws as verifying the whole library. ``progress(name, done, total)``
     is called before each concept.
     """
+    scale = check_scale(scale)
     gripper = gripper or Gripper.panda()
     chosen = list(names) if names is not None else verifiable(lib)
     reports = []
     for i, name in enumerate(chosen):
         if progress is not None:
             progress(name, i, len(chosen))
-        reports.append(verify_concept(lib[name], draws, concept_seed(seed, name), gripper))
+        seed_i = concept_seed(seed, name)
+        reports.append(verify_concept(lib[name], draws, seed_i, gripper, scale=scale))
     if progress is not None and chosen:
         progress(chosen[-1], len(chosen), len(chosen))
-    return VerifyReport(draws, seed, gripper.name, tuple(reports))
+    return VerifyReport(draws, seed, gripper.name, tuple(reports), scale)
+
+
+def check_scale(scale: Any) -> float:
+    """A size factor: a finite number > 0, or a ``ParameterError``."""
+    if isinstance(scale, bool) or not isinstance(scale, (int, float, np.floating, np.integer)):
+        raise ParameterError(f"scale must be a number > 0, not {scale!r:.60}")
+    value = float(scale)
+    if not (math.isfinite(value) and value > 0):
+        raise ParameterError(f"scale must be a finite number > 0, got {value!r}")
+    return value
+
+
+def scaled_specs(concept: Concept, scale: float) -> tuple[ParamSpec, ...]:
+    """The parameters with every length range and default multiplied by ``scale``."""
+    if scale == 1.0:
+        return concept.params
+    return tuple(
+        replace(p, lo=_times(p.lo, scale), hi=_times(p.hi, scale), default=_times(p.default, scale))
+        if p.dim == "length" and p.kind in ("num", "vec")
+        else p
+        for p in concept.params
+    )
+
+
+def _times(value: Any, scale: float) -> Any:
+    if isinstance(value, tuple):
+        return tuple(float(v) * scale for v in value)
+    return None if value is None else float(value) * scale
+
+
+def scaled_defaults(concept: Concept, scale: float) -> dict[str, Any]:
+    """The defaults with every length multiplied by ``scale`` (choices by name)."""
+    out = concept.defaults()
+    for p in scaled_specs(concept, scale):
+        if p.kind in ("num", "vec") and p.dim == "length":
+            out[p.name] = p.default
+    return out
+
+
+def forbidding_requirement(concept: Concept, scale: float) -> str:
+    """Why the scaled defaults cannot be instantiated (the violated requirements), or ''."""
+    try:
+        concept.instantiate(ranges="valid", params=scaled_defaults(concept, scale))
+    except RequirementError as exc:
+        return str(exc).split(": the parameters violate ", 1)[-1]
+    except ParameterError:
+        return ""  # a broken shape or range: the draws report it as a failure
+    return ""
 
 
 def verifiable(lib: Library) -> list[str]:
@@ -254,27 +324,42 @@ def concept_seed(seed: int, name: str) -> int:
 
 
 def verify_concept(
-    concept: Concept, draws: int = 200, seed: int = 0, gripper: Gripper | None = None
+    concept: Concept,
+    draws: int = 200,
+    seed: int = 0,
+    gripper: Gripper | None = None,
+    scale: float = 1.0,
 ) -> ConceptReport:
-    """Draw ``draws`` valid parameter sets of ``concept`` and run every check on each (see the
-    module docstring). Draws that break a ``require`` are redrawn, up to ``MAX_ATTEMPTS`` times
-    ``draws`` attempts in all; the report says when fewer were accepted."""
+    """Draw ``draws`` valid parameter sets of ``concept`` (every length range times ``scale``)
+    and run every check on each (see the module docstring). Draws that break a ``require`` are
+    redrawn, up to ``MAX_ATTEMPTS`` times ``draws`` attempts in all; the report says when fewer
+    were accepted."""
     if draws < 1:
         raise ParameterError(f"draws must be a positive number, got {draws}")
+    scale = check_scale(scale)
     gripper = gripper or Gripper.panda()
+    ranges = "typical" if scale == 1.0 else "valid"
+    if scale != 1.0:
+        forbidden = forbidding_requirement(concept, scale)
+        if forbidden:
+            note = f"not drawn at {scale:g}x: the scaled defaults violate {forbidden}"
+            return ConceptReport(
+                concept.name, 0, 0, {c: 0 for c in CHECKS}, (), note, scale, forbidden
+            )
+    specs = scaled_specs(concept, scale)
     rng = np.random.default_rng(seed)
-    run = _Run(concept, gripper, rng)
+    run = _Run(concept, gripper, rng, hand_limits=scale != 1.0)
     accepted = attempts = 0
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
         attempts += 1
-        values = draw_params(concept, rng)
+        values = draw_params(concept, rng, specs)
         pose = random_pose(rng)
         try:
-            inst = concept.instantiate(pose=pose, **values)
+            inst = concept.instantiate(pose=pose, ranges=ranges, params=values)
         except RequirementError:
             continue
-        except ParameterError as exc:  # in range, yet refused: a formula of the concept fails
+        except ParameterError as exc:  # in range, yet refused: a formula or a shape fails
             accepted += 1
             run.refused(values, pose, exc)
             continue
@@ -286,14 +371,24 @@ def verify_concept(
             f"only {accepted} of {attempts} draws satisfy the requirements "
             f"({accepted / attempts:.1%}); stopped after {cap} attempts"
         )
-    return ConceptReport(concept.name, accepted, attempts, dict(run.evaluated), run.failures, note)
+    if run.too_wide:
+        wide = ", ".join(sorted(run.too_wide))
+        note = "; ".join(
+            x for x in (note, f"wider than {gripper.name} opens in some draws: {wide}") if x
+        )
+    return ConceptReport(
+        concept.name, accepted, attempts, dict(run.evaluated), run.failures, note, scale
+    )
 
 
-def draw_params(concept: Concept, rng: np.random.Generator) -> dict[str, Any]:
+def draw_params(
+    concept: Concept, rng: np.random.Generator, specs: Sequence[ParamSpec] | None = None
+) -> dict[str, Any]:
     """A value of every parameter, uniform inside its range (per component for vectors), a
-    continuous component on one of its range's ends in ``1 / ENDS`` of the draws."""
+    continuous component on one of its range's ends in ``1 / ENDS`` of the draws; ``specs``
+    replaces the concept's parameters (``scaled_specs``)."""
     out: dict[str, Any] = {}
-    for p in concept.params:
+    for p in concept.params if specs is None else specs:
         if p.kind == "choice":
             assert p.choices is not None
             out[p.name] = p.choices[int(rng.integers(len(p.choices)))]
@@ -404,8 +499,18 @@ def _at_most(check: str, value: float, limit: float, unit: str, message: str) ->
 class _Run:
     """The checks of one concept, accumulating counts and failures over its draws."""
 
-    def __init__(self, concept: Concept, gripper: Gripper, rng: np.random.Generator):
+    def __init__(
+        self,
+        concept: Concept,
+        gripper: Gripper,
+        rng: np.random.Generator,
+        hand_limits: bool = False,
+    ):
         self.concept, self.gripper, self.rng = concept, gripper, rng
+        # at a scale other than 1, a pinch wider than the hand opens is the hand's limit (it
+        # does not grow with the object), not the concept's: noted, not failed
+        self.hand_limits = hand_limits
+        self.too_wide: set[str] = set()
         self.evaluated: dict[str, int] = {c: 0 for c in CHECKS}
         self._failures: list[Failure] = []
         self._worst: dict[tuple[str, str], tuple[float, Failure]] = {}
@@ -462,13 +567,17 @@ class _Run:
 
     def refused(self, values: Mapping[str, Any], pose: np.ndarray, exc: ParameterError) -> None:
         """A draw inside every range that ``instantiate`` refused (not for a ``require``): a
-        formula of the concept (a joint limit, a requirement) is not finite there."""
-        self.evaluated["finite"] += 1
+        formula of the concept (a joint limit, a requirement) is not finite there, or (with
+        ``ranges="valid"``) a shape or a range is malformed."""
+        shape = isinstance(exc, ShapeError)
+        check = "shape" if shape else "finite"
+        self.evaluated[check] += 1
         params = {k: str(v) for k, v in values.items()}
         si = {"params": {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}}
         si["pose"] = pose.tolist()
         name = self.concept.name
-        self._failures.append(Failure(name, "finite", name, params, 0.0, 0.0, "", str(exc), si))
+        member = f"{exc.shape} ({exc.where})" if isinstance(exc, ShapeError) else name
+        self._failures.append(Failure(name, check, member, params, 0.0, 0.0, "", str(exc), si))
 
     def _broken(self, inst: Instance, check: str, member: str, message: str) -> None:
         """Record a draw that cannot be checked (its values are the draw's parameters)."""
@@ -581,6 +690,10 @@ class _Run:
             )
             miss = max(width - top, -width)
             measure = _Measure("width", fits, miss, width * 1e3, top * 1e3, "mm", message)
+            if self.hand_limits and width > top:
+                self.evaluated["width"] += 1
+                self.too_wide.add(s.grasp)
+                continue
             self._record(inst, s.grasp, s, measure)
             if fits:
                 fitting.append((s, width))
@@ -804,7 +917,8 @@ def _display(inst: Instance, grasp: str | None, free: Mapping[str, float]) -> di
 
 def _si(inst: Instance, free: Mapping[str, float]) -> dict[str, Any]:
     """The same values in SI, JSON-ready: ``concept.instantiate(pose=..., joints=..., **params)``
-    and ``inst.grasp(name, **free)`` reproduce the failure."""
+    (with ``ranges="valid"`` for a report at a scale other than 1) and
+    ``inst.grasp(name, **free)`` reproduce the failure."""
     params = {k: list(v) if isinstance(v, tuple) else v for k, v in inst.params.items()}
     joints = {n: float(q) for n, q in zip(inst.concept.moving_joints, inst.q)}
     return {
