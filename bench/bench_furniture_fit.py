@@ -58,7 +58,7 @@ from grace_dsl.runtime.shapes import instance_pieces  # noqa: E402
 RESULT = Path(__file__).parent / "results" / "furniture_fit.json"
 FURNITURE = Path(__file__).resolve().parents[1] / "concepts" / "furniture.eac"
 TARGETS = {"residual_mm": 5.0, "axis_deg": 2.0, "origin_mm": 10.0}
-N_REAL, N_CONCEPT, N_DENSE = 400, 400, 30_000
+N_REAL, N_CONCEPT, N_DENSE = 300, 300, 30_000
 
 
 @dataclass(frozen=True)
@@ -80,22 +80,37 @@ class Recipe:
     free: tuple[Free, ...]
     fixed: dict[str, Any]
     options: tuple[dict[str, Any], ...]
-    guess: Callable[[np.ndarray, np.ndarray], dict[str, Any]]
+    guess: Callable[[np.ndarray], dict[str, Any]]
 
 
-def _cabinet_guess(lo: np.ndarray, hi: np.ndarray) -> dict[str, Any]:
+def _box_guess(points: np.ndarray) -> dict[str, Any]:
+    """Carcass size and position from the model's samples: width and height from the bounding
+    box (a 90 mm plinth assumed), the front plane from the side boards (the samples within
+    2 mm of the widest x: fronts and handles are narrower), the back from the lowest z."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
     plinth = 0.09
     h = hi[1] - lo[1] - plinth
-    d = 0.5
+    sides = np.abs(points[:, 0] - (lo[0] + hi[0]) / 2) > (hi[0] - lo[0]) / 2 - 0.002
+    front = float(points[sides, 2].max()) if sides.any() else float(lo[2] + 0.5)
+    d = front - lo[2]
     return {
         "t": (float((lo[0] + hi[0]) / 2), float(lo[1] + plinth + h / 2), float(lo[2] + d / 2)),
-        "size": (float(hi[0] - lo[0]), float(h), d),
+        "size": (float(hi[0] - lo[0]), float(h), float(d)),
         "plinth_height": plinth,
+        "front_z": front,
     }
 
 
-def _chest_guess(lo: np.ndarray, hi: np.ndarray) -> dict[str, Any]:
-    return _cabinet_guess(lo, hi) | {"plinth_height": 0.09}
+def _chest_guess(points: np.ndarray) -> dict[str, Any]:
+    """The box, and each drawer's travel from the samples in its third of the height: how far
+    their front-most point (less a front and a handle, 55 mm) stands before the carcass."""
+    g = _box_guess(points)
+    y0, h = g["t"][1] - g["size"][1] / 2, g["size"][1]
+    for k in (1, 2, 3):
+        band = (points[:, 1] > y0 + (3 - k) * h / 3) & (points[:, 1] < y0 + (4 - k) * h / 3)
+        reach = float(points[band, 2].max()) if band.any() else g["front_z"]
+        g[f"drawer{k}.slide"] = max(reach - g["front_z"] - 0.055, 0.01)
+    return g
 
 
 RECIPES = {
@@ -115,7 +130,7 @@ RECIPES = {
         ),
         {"door.handle_vertical": True},
         ({"hinge_side": "left"}, {"hinge_side": "right"}),
-        _cabinet_guess,
+        _box_guess,
     ),
     "drawers3": Recipe(
         "BoardChest3",
@@ -204,7 +219,7 @@ class Fit:
                 lo_v, hi_v = np.atleast_1d(s.lo), np.atleast_1d(s.hi)
                 self.lo.append(float(lo_v[f.index or 0]))
                 self.hi.append(float(hi_v[f.index or 0]))
-        self.counts: list[int] | None = None
+        self.local: list[np.ndarray] = []
 
     def unpack(self, x: np.ndarray) -> tuple[dict[str, Any], dict[str, float], np.ndarray]:
         params: dict[str, Any] = dict(self.recipe.fixed) | dict(self.option)
@@ -227,18 +242,27 @@ class Fit:
         params, joints, pose = self.unpack(x)
         return self.concept.instantiate(pose=pose, joints=joints, params=params)
 
-    def concept_samples(self, inst: Any) -> np.ndarray:
-        """A fixed number of samples per piece (set at the first call, by area), each piece
-        with its own seed: they move smoothly as the parameters change."""
+    def anchor(self, inst: Any) -> None:
+        """Draw the concept's samples on ``inst``: a fixed number per piece (by area), each
+        piece with its own seed, kept in the piece's frame so that during a solve they move
+        with their piece (its pose follows the parameters and joints); a new anchor after each
+        solve lets them follow the sizes too (as ICP re-matches its points)."""
         pieces = instance_pieces(inst)
-        if self.counts is None:
-            areas = np.array([surface_area(p.primitive, p.params) for p, _ in pieces])
-            self.counts = list(np.maximum(np.round(N_CONCEPT * areas / areas.sum()), 1).astype(int))
-        out = []
-        for k, ((piece, world), n) in enumerate(zip(pieces, self.counts)):
-            pts, _ = sample_surface(piece.primitive, piece.params, int(n), seed=k)
-            out.append(pts @ world[:3, :3].T + world[:3, 3])
-        return np.concatenate(out)
+        areas = np.array([surface_area(p.primitive, p.params) for p, _ in pieces])
+        counts = np.maximum(np.round(N_CONCEPT * areas / areas.sum()), 1).astype(int)
+        self.local = [
+            sample_surface(piece.primitive, piece.params, int(n), seed=k)[0]
+            for k, ((piece, _), n) in enumerate(zip(pieces, counts))
+        ]
+
+    def concept_samples(self, inst: Any, exact: bool = False) -> np.ndarray:
+        """The anchored samples carried to ``inst``'s pieces (``exact``: drawn afresh on it)."""
+        if exact:
+            self.anchor(inst)
+        pieces = instance_pieces(inst)
+        return np.concatenate(
+            [pts @ w[:3, :3].T + w[:3, 3] for pts, (_, w) in zip(self.local, pieces)]
+        )
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         try:
@@ -246,7 +270,7 @@ class Fit:
             there = inst.sdf(self.real.points)
             back = self.real.distance(self.concept_samples(inst))
         except eac.GraceError:  # a require broken inside the box: a flat, large penalty
-            return np.full(N_REAL + (sum(self.counts) if self.counts else N_CONCEPT), 0.2)
+            return np.full(N_REAL + sum(len(p) for p in self.local), 0.2)
         a, b = there / math.sqrt(len(there)), back / math.sqrt(len(back))
         return np.concatenate([a, b])
 
@@ -258,7 +282,7 @@ def _start(fit: Fit, guess: dict[str, Any], rng: np.random.Generator) -> np.ndar
     x = []
     for f, lo, hi in zip(fit.recipe.free, fit.lo, fit.hi):
         g = guess.get(f.name, defaults.get(f.name))
-        if f.joint:
+        if f.joint and f.name not in guess:
             v = lo + (hi - lo) * rng.uniform(0.05, 0.5)
         else:
             v = float(np.atleast_1d(g)[f.index or 0])
@@ -268,40 +292,45 @@ def _start(fit: Fit, guess: dict[str, Any], rng: np.random.Generator) -> np.ndar
     return np.array(x)
 
 
-def _solve(fit: Fit, x0: np.ndarray, budget: int) -> Any:
-    return least_squares(
-        fit.residuals,
-        x0,
-        bounds=(fit.lo, fit.hi),
-        x_scale="jac",
-        max_nfev=budget,
-        diff_step=1e-4,
-        loss="soft_l1",
-        f_scale=0.01,
-    )
+def _solve(fit: Fit, x0: np.ndarray, budget: int, rounds: int = 1) -> Any:
+    """``rounds`` solves of ``budget`` iterations each, the concept's samples anchored anew
+    on the current fit before each."""
+    res = None
+    for _ in range(rounds):
+        x = x0 if res is None else res.x
+        fit.anchor(fit.instance(x))
+        res = least_squares(
+            fit.residuals,
+            x,
+            bounds=(fit.lo, fit.hi),
+            x_scale="jac",
+            max_nfev=budget,
+            diff_step=1e-4,
+            loss="soft_l1",
+            f_scale=0.01,
+        )
+    return res
 
 
 def fit_model(lib: eac.Library, model: gen.Model, seed: int, budget: int, starts: int) -> dict:
     recipe = RECIPES[model.layout]
     concept = lib[recipe.concept]
     real = Real.of(model, seed)
-    lo, hi = real.points.min(axis=0), real.points.max(axis=0)
     rng = np.random.default_rng(seed)
     best: tuple[float, Fit, Any] | None = None
     for option in recipe.options:
         fit = Fit(concept, recipe, option, real)
         for _ in range(starts):
-            guess = recipe.guess(lo, hi)
-            guess["size"] = (guess["size"][0], guess["size"][1], rng.uniform(0.38, 0.58))
-            res = _solve(fit, _start(fit, guess, rng), max(budget // 3, 20))
+            guess = recipe.guess(real.dense)
+            res = _solve(fit, _start(fit, guess, rng), max(budget // 4, 4))
             if best is None or res.cost < best[0]:
                 best = (res.cost, fit, res)
     assert best is not None
     _, fit, res = best
-    res = _solve(fit, res.x, budget)
+    res = _solve(fit, res.x, budget, rounds=2)
     inst = fit.instance(res.x)
     there = np.abs(inst.sdf(real.points))
-    back = real.exact_distance(fit.concept_samples(inst))
+    back = real.exact_distance(fit.concept_samples(inst, exact=True))
     params, joints, pose = fit.unpack(res.x)
     return {
         "model": model.name,
@@ -380,14 +409,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=30, help="models to generate")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--budget", type=int, default=120, help="residual evaluations per fit")
+    ap.add_argument("--budget", type=int, default=30, help="residual evaluations per fit")
     ap.add_argument("--starts", type=int, default=1, help="seeded starts per discrete option")
     ap.add_argument("--out", type=Path, default=RESULT)
     ap.add_argument("--smoke", action="store_true", help="2 models, a small budget")
     ap.add_argument("--keep", type=Path, help="write the generated models here")
     args = ap.parse_args(argv)
     if args.smoke:
-        args.n, args.budget = 2, 30
+        args.n, args.budget = 2, 12
     t0 = time.perf_counter()
     lib = eac.compile_paths([FURNITURE])
     models = gen.sample_models(args.n, args.seed)
