@@ -67,6 +67,7 @@ def _triangles(q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np
     return np.where(inside, np.abs(plane), np.min(edges, axis=0))
 
 
+@pytest.mark.slow
 @FEW
 @given(p=params_for("BoardBox"), seed=st.integers(0, 1 << 16))
 def test_sign_is_mesh_containment_and_value_is_distance_to_the_mesh(
@@ -85,6 +86,7 @@ def test_sign_is_mesh_containment_and_value_is_distance_to_the_mesh(
     np.testing.assert_allclose(np.abs(d), _face_distance(mesh, pts), atol=1e-9)
 
 
+@pytest.mark.slow
 @FEW
 @given(p=params_for("BoardBox"), seed=st.integers(0, 1 << 16))
 def test_gradient_has_unit_norm_away_from_edges(p: dict[str, Any], seed: int) -> None:
