@@ -101,6 +101,15 @@ def _box_guess(points: np.ndarray) -> dict[str, Any]:
     }
 
 
+def _door_guess(points: np.ndarray) -> dict[str, Any]:
+    """The box, and the door's angle from how far the samples reach in front of the carcass:
+    an open leaf of width w stands out by about w sin(q)."""
+    g = _box_guess(points)
+    reach = float(points[:, 2].max()) - g["front_z"]
+    g["door.hinge"] = math.asin(float(np.clip(reach / g["size"][0], 0.02, 1.0)))
+    return g
+
+
 def _chest_guess(points: np.ndarray) -> dict[str, Any]:
     """The box, and each drawer's travel from the samples in its third of the height: how far
     their front-most point (less a front and a handle, 55 mm) stands before the carcass."""
@@ -130,7 +139,7 @@ RECIPES = {
         ),
         {"door.handle_vertical": True},
         ({"hinge_side": "left"}, {"hinge_side": "right"}),
-        _box_guess,
+        _door_guess,
     ),
     "drawers3": Recipe(
         "BoardChest3",
@@ -144,7 +153,7 @@ RECIPES = {
             Free("handle_y"),
             *(Free(f"drawer{k}.slide", joint=True) for k in (1, 2, 3)),
         ),
-        {"travel": 0.3},
+        {},
         ({},),
         _chest_guess,
     ),
@@ -213,7 +222,7 @@ class Fit:
             elif f.joint:
                 lo, hi = limits[f.name]
                 self.lo.append(lo)
-                self.hi.append(min(hi, 2.0))
+                self.hi.append(min(hi, 2.0) if f.name.endswith("hinge") else 0.6)
             else:
                 s = specs[f.name]
                 lo_v, hi_v = np.atleast_1d(s.lo), np.atleast_1d(s.hi)
@@ -236,6 +245,8 @@ class Fit:
             else:
                 params[f.name] = float(v)
         params.update({k: tuple(v) for k, v in vectors.items()})
+        if "travel" in specs_of(self.concept):  # the runners reach at least the widest opening
+            params["travel"] = max([0.15, *(q + 1e-3 for q in joints.values())])
         return params, joints, pose
 
     def instance(self, x: np.ndarray) -> Any:
@@ -273,6 +284,10 @@ class Fit:
             return np.full(N_REAL + sum(len(p) for p in self.local), 0.2)
         a, b = there / math.sqrt(len(there)), back / math.sqrt(len(back))
         return np.concatenate([a, b])
+
+
+def specs_of(concept: eac.Concept) -> set[str]:
+    return {s.name for s in concept.params}
 
 
 def _start(fit: Fit, guess: dict[str, Any], rng: np.random.Generator) -> np.ndarray:
