@@ -84,18 +84,20 @@ class Recipe:
 
 
 def _box_guess(points: np.ndarray) -> dict[str, Any]:
-    """Carcass size and position from the model's samples: width and height from the bounding
-    box (a 90 mm plinth assumed), the front plane from the side boards (the samples within
-    2 mm of the widest x: fronts and handles are narrower), the back from the lowest z."""
+    """Carcass size and position from the model's samples, read off its top face (the samples
+    within 1 mm of the highest: doors and fronts stop a gap below it, handles lower still):
+    its x extent is the width, its front edge the front plane; the height from the floor (a
+    90 mm plinth assumed), the back from the lowest z."""
     lo, hi = points.min(axis=0), points.max(axis=0)
+    top = points[points[:, 1] > hi[1] - 0.001]
+    x0, x1 = (top[:, 0].min(), top[:, 0].max()) if len(top) > 10 else (lo[0], hi[0])
+    front = float(top[:, 2].max()) if len(top) > 10 else float(lo[2] + 0.5)
     plinth = 0.09
     h = hi[1] - lo[1] - plinth
-    sides = np.abs(points[:, 0] - (lo[0] + hi[0]) / 2) > (hi[0] - lo[0]) / 2 - 0.002
-    front = float(points[sides, 2].max()) if sides.any() else float(lo[2] + 0.5)
     d = front - lo[2]
     return {
-        "t": (float((lo[0] + hi[0]) / 2), float(lo[1] + plinth + h / 2), float(lo[2] + d / 2)),
-        "size": (float(hi[0] - lo[0]), float(h), float(d)),
+        "t": (float((x0 + x1) / 2), float(lo[1] + plinth + h / 2), float(lo[2] + d / 2)),
+        "size": (float(x1 - x0), float(h), float(d)),
         "plinth_height": plinth,
         "front_z": front,
     }
@@ -119,6 +121,7 @@ def _chest_guess(points: np.ndarray) -> dict[str, Any]:
         band = (points[:, 1] > y0 + (3 - k) * h / 3) & (points[:, 1] < y0 + (4 - k) * h / 3)
         reach = float(points[band, 2].max()) if band.any() else g["front_z"]
         g[f"drawer{k}.slide"] = max(reach - g["front_z"] - 0.055, 0.01)
+    g["tray_depth"] = g["size"][2] - 0.045
     return g
 
 
@@ -151,6 +154,8 @@ RECIPES = {
             Free("plinth.recess"),
             Free("handle_length"),
             Free("handle_y"),
+            Free("front_thickness"),
+            Free("tray_depth"),
             *(Free(f"drawer{k}.slide", joint=True) for k in (1, 2, 3)),
         ),
         {},
