@@ -1,4 +1,4 @@
-"""The board box (``BoardBox``): a hollow box of boards, the carcass of furniture and a drawer's tray.
+"""The board box (``BoardBox``): a hollow box of boards, a furniture carcass or a drawer's tray.
 
 One layout serves every view of the solid. Along each axis the box splits at the board faces
 (``-h, -h + b, h - b, h``) into a 3 x 3 x 3 grid of cells; the middle cell is the cavity, and an
