@@ -86,13 +86,15 @@ class Recipe:
 def _box_guess(points: np.ndarray) -> dict[str, Any]:
     """Carcass size and position from the model's samples, read off its top face (the samples
     within 1 mm of the highest: doors and fronts stop a gap below it, handles lower still):
-    its x extent is the width, its front edge the front plane; the height from the floor (a
-    90 mm plinth assumed), the back from the lowest z."""
+    its x extent is the width, its front edge the front plane; the carcass's bottom is the
+    lowest sample on the front plane (the plinth is set back), the back the lowest z."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     top = points[points[:, 1] > hi[1] - 0.001]
     x0, x1 = (top[:, 0].min(), top[:, 0].max()) if len(top) > 10 else (lo[0], hi[0])
     front = float(top[:, 2].max()) if len(top) > 10 else float(lo[2] + 0.5)
-    plinth = 0.09
+    on_front = points[np.abs(points[:, 2] - front) < 0.001]
+    plinth = float(on_front[:, 1].min() - lo[1]) if len(on_front) > 10 else 0.09
+    plinth = float(np.clip(plinth, 0.041, 0.199))
     h = hi[1] - lo[1] - plinth
     d = front - lo[2]
     return {
