@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trimesh
 
+from grace_dsl.geometry import convex_pieces, primitive_mesh
 from grace_dsl.runtime.shapes import ShapeTree
 from grace_dsl.tolerances import DEGENERATE, EXACT
 
@@ -22,6 +23,7 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
 
 FULL_TURN = 2 * math.pi
+SPLIT = ("BoardBox",)  # primitives exported as their exact convex pieces
 
 
 @dataclass(frozen=True)
@@ -66,11 +68,32 @@ def _untapered(p: Mapping[str, Any]) -> bool:
 def link_geoms(
     inst: Instance, link: str, frame: np.ndarray, resolution: int, warnings: list[str]
 ) -> tuple[Geom, ...]:
-    """The geoms of ``link``, posed relative to its exported ``frame`` (concept frame, q = 0)."""
+    """The geoms of ``link``, posed relative to its exported ``frame`` (concept frame, q = 0).
+
+    A ``BoardBox`` is written as its boards (``grace_dsl.geometry.convex_pieces``): native boxes
+    a simulator collides exactly, where one mesh would collide as its convex hull."""
     tree = ShapeTree(inst, resolution)
     inv = np.linalg.inv(frame)
-    return tuple(
-        Geom(piece.name, piece.primitive, piece.params, inv @ piece.pose, piece.mesh)
-        for name in tree.outermost(link)
-        for piece in tree.pieces(name, tree.placement(name), warnings)
-    )
+    out = []
+    for name in tree.outermost(link):
+        for piece in tree.pieces(name, tree.placement(name), warnings):
+            split = (
+                convex_pieces(piece.primitive, piece.params) if piece.primitive in SPLIT else None
+            )
+            if split is None:
+                out.append(
+                    Geom(piece.name, piece.primitive, piece.params, inv @ piece.pose, piece.mesh)
+                )
+                continue
+            for c in split:
+                mesh = primitive_mesh(c.primitive, c.params, resolution)
+                out.append(
+                    Geom(
+                        f"{piece.name}.{c.name}",
+                        c.primitive,
+                        c.params,
+                        inv @ piece.pose @ c.pose,
+                        mesh,
+                    )
+                )
+    return tuple(out)

@@ -3,7 +3,8 @@
 Boxes, spheres, capsules, cones and spherical caps come from trimesh's generators; everything
 whose cross-section is planar in xy (sectors, tubes, rings, frames, polygons) is one 2D cap
 triangulation extruded along z, so sectors of any angle share one code path. The tapered box is
-its six planar faces; the torus segment is a circle swept along an arc.
+its six planar faces; the torus segment is a circle swept along an arc; the board box the faces
+of its board grid (``grace_dsl.geometry.boards``).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
+from grace_dsl.geometry import boards
 from grace_dsl.geometry.errors import GeometryError
 from grace_dsl.geometry.primitives import (
     FULL_TURN,
@@ -253,6 +255,22 @@ def _prism(p: Params, res: int) -> trimesh.Trimesh:
     return _extrude(v2, _fan(0, 1, len(v2) - 1, True), _f(p["height"]))
 
 
+def _board_box(p: Params, res: int) -> trimesh.Trimesh:
+    """Exact: the faces between solid and empty cells of the board grid, as two triangles each,
+    on the grid's shared vertices (so the mesh is closed wherever the boards meet)."""
+    g = boards.grid(p)
+    verts = np.array([[x, y, z] for x in g[0] for y in g[1] for z in g[2]])
+    index = {tuple(np.round(v, 12)): i for i, v in enumerate(verts)}
+    quads = [
+        [index[tuple(np.round(c, 12))] for c in (o, o + u, o + u + v, o + v)]
+        for o, u, v, _ in boards.faces(p)
+    ]
+    q = np.array(quads)
+    mesh = trimesh.Trimesh(verts, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]), process=False)
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
 def _f(v: Any) -> float:
     return float(v)
 
@@ -274,6 +292,7 @@ BUILDERS: dict[str, Callable[[Params, int], trimesh.Trimesh]] = {
     "SphericalCap": _spherical_cap,
     "Torus": _torus,
     "Prism": _prism,
+    "BoardBox": _board_box,
 }
 
 

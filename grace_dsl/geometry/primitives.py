@@ -16,7 +16,7 @@ import numpy as np
 
 from grace_dsl.geometry.errors import GeometryError
 
-Kind = Literal["length", "angle", "int", "vec2", "vec3"]
+Kind = Literal["length", "angle", "int", "bool", "vec2", "vec3"]
 Value = float | int | tuple[float, ...]
 Params = dict[str, Value]
 
@@ -177,6 +177,21 @@ PRIMITIVES: dict[str, PrimitiveSpec] = {
             (_p("sides", "int", 6), _p("radius", "length", 0.02), _p("height", "length", 0.02)),
             ((lambda q: _i(q, "sides") >= 3, "sides >= 3 (a polygon has at least three)"),),
         ),
+        PrimitiveSpec(
+            "BoardBox",
+            (
+                _p("size", "vec3", (0.6, 0.72, 0.56)),
+                _p("board", "length", 0.018),
+                _p("top", "bool", True),
+                _p("front", "bool", False),
+            ),
+            (
+                (
+                    lambda q: all(2 * _f(q, "board") < s for s in _v(q, "size")),
+                    "2 * board < every side of size (the boards leave a cavity)",
+                ),
+            ),
+        ),
     )
 }
 
@@ -213,6 +228,10 @@ def _check_value(prim: str, ps: ParamSpec, raw: Any) -> Value:
         raise GeometryError(f"{where} must be {shape}, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise GeometryError(f"{where} must be finite, got {raw!r}")
+    if ps.kind == "bool":
+        if arr.item() not in (0.0, 1.0):
+            raise GeometryError(f"{where} must be true or false (1 or 0), got {raw!r}")
+        return bool(arr.item())
     if ps.kind == "int":
         if isinstance(raw, bool) or arr.item() != round(arr.item()):
             raise GeometryError(f"{where} must be a whole number, got {raw!r}")

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from grace_dsl.geometry import boards
 from grace_dsl.geometry.primitives import FULL_TURN, Params, validate
 
 
@@ -35,6 +36,7 @@ def prism_vertices(sides: int, radius: float) -> NDArray[np.float64]:
 
 
 VOLUMES: dict[str, Callable[[Params], float]] = {
+    "BoardBox": boards.volume,
     "Cuboid": lambda p: float(np.prod(p["size"])),
     "Cylinder": lambda p: _fl(p["radian"]) / 2 * _fl(p["radius"]) ** 2 * _fl(p["height"]),
     "Tube": lambda p: math.pi * (_fl(p["r_out"]) ** 2 - _fl(p["r_in"]) ** 2) * _fl(p["height"]),
@@ -126,7 +128,7 @@ _BOUNDS: dict[str, Callable[[Params], NDArray[np.float64]]] = {
 def bounds(name: str, params: Mapping[str, Any]) -> NDArray[np.float64]:
     """The exact axis-aligned bounding box (2, 3) in the primitive's frame."""
     p = validate(name, params)
-    if name == "Cuboid":
+    if name in ("Cuboid", "BoardBox"):
         half = np.asarray(p["size"]) / 2
         return np.array([-half, half])
     if name in ("Cylinder", "Ring", "Tube"):

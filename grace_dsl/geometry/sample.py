@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from grace_dsl.geometry import boards
 from grace_dsl.geometry.errors import GeometryError
 from grace_dsl.geometry.primitives import FULL_TURN, Params, validate
 from grace_dsl.geometry.props import cap_base_radius, prism_vertices
@@ -296,6 +297,7 @@ PATCHES: dict[str, Callable[[Params], list[Patch]]] = {
     "SphericalCap": _spherical_cap,
     "Torus": _torus,
     "Prism": _prism,
+    "BoardBox": lambda p: [_rect(o, u, v, n) for o, u, v, n in boards.faces(p)],
 }
 
 

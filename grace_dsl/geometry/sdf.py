@@ -5,8 +5,9 @@ two versions cannot drift apart; the CasADi one is differentiable in the paramet
 model fitting needs. All distances are exact (Inigo Quilez's closed forms, adapted to the frames
 of ``primitives.eac``): boxes, spheres, capsules, capped cones, spherical caps, torus segments,
 2D cross-sections (disk, circular sector, annulus, annular sector, box-minus-box, regular
-polygon) extruded exactly along z, and the tapered box as a convex polytope (nearest face, edge
-or corner).
+polygon) extruded exactly along z, the tapered box as a convex polytope (nearest face, edge
+or corner), and the board box as its outer box minus its cavity inside, its nearest board outside
+(``grace_dsl.geometry.boards``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from grace_dsl.geometry import boards
 from grace_dsl.geometry.errors import GeometryError
 from grace_dsl.geometry.primitives import FULL_TURN, check_names, validate
 
@@ -323,6 +325,7 @@ FORMULAS: dict[str, Formula] = {
     "SphericalCap": _sphere_cap,
     "Torus": _torus,
     "Prism": _prism,
+    "BoardBox": boards.sdf,
 }
 
 

@@ -263,6 +263,24 @@ def _motions(tree: ShapeTree) -> dict[str, np.ndarray]:
     }
 
 
+def instance_pieces(inst: Instance, resolution: int = 64) -> list[tuple[Piece, np.ndarray]]:
+    """Every solid of the instance with its world pose (world <- piece frame, at the instance's
+    joint values): what a caller needs to sample or mesh the pieces itself, e.g. a fit that
+    draws a fixed number of points per piece so the samples move smoothly with the parameters.
+    A difference that cannot be built raises ``ValueError``."""
+    tree = ShapeTree(inst, resolution)
+    motions = _motions(tree)
+    warnings: list[str] = []
+    out = [
+        (piece, motions[piece.link] @ piece.pose)
+        for name in tree.outermost()
+        for piece in tree.pieces(name, tree.placement(name), warnings)
+    ]
+    if warnings:
+        raise ValueError("; ".join(warnings))
+    return out
+
+
 def instance_meshes(
     inst: Instance, link: str | None = None, resolution: int = 64
 ) -> list[trimesh.Trimesh]:

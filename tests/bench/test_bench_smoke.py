@@ -20,6 +20,7 @@ def test_every_script_is_smoke_tested() -> None:
     assert SCRIPTS == [
         "bench_adversarial.py",
         "bench_eval.py",
+        "bench_furniture_fit.py",
         "bench_geometry.py",
         "bench_grasp_ik.py",
         "bench_ik.py",

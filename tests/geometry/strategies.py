@@ -63,4 +63,13 @@ def params_for(draw: Any, name: str) -> dict[str, Any]:
     if name == "Prism":
         sides = draw(st.one_of(st.integers(3, 12), st.just(64)))
         return {"sides": sides, "radius": draw(LEN), "height": draw(LEN)}
+    if name == "BoardBox":
+        size = (draw(st.floats(0.02, 0.3)), draw(st.floats(0.02, 0.3)), draw(st.floats(0.02, 0.3)))
+        board = min(size) / 2 * draw(st.floats(0.05, 0.9))
+        return {
+            "size": size,
+            "board": board,
+            "top": draw(st.booleans()),
+            "front": draw(st.booleans()),
+        }
     raise AssertionError(name)

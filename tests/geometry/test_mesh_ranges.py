@@ -22,6 +22,9 @@ def _draw(concept: eac.Concept, rng: np.random.Generator) -> dict[str, object]:
         if s.kind == "int":
             out[s.name] = int(rng.integers(int(np.ceil(lo[0])), int(hi[0]) + 1))
             continue
+        if s.kind == "bool":
+            out[s.name] = bool(rng.integers(2))
+            continue
         x = np.exp(rng.uniform(np.log(np.maximum(lo, 1e-6)), np.log(hi)))
         end = rng.integers(4, size=x.shape)
         x = np.where(end == 0, lo, np.where(end == 1, hi, x))

@@ -1,0 +1,92 @@
+"""The board furniture of ``concepts/furniture.eac``: parts without a carcass, placed by hosts.
+
+Checked against numbers computed here from the parameters: where the door's hinge is and which
+way it opens, where a drawer's front goes when it slides, that the carcass is hollow (a point
+inside it is outside the instance), that the plinth's front is set back, and that the MuJoCo
+export collides with the boards rather than a solid block.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import grace_dsl as eac
+from grace_dsl.export import export_mjcf
+from grace_dsl.runtime.errors import RequirementError
+from grace_dsl.runtime.kinematics import Kinematics
+
+
+@pytest.fixture(scope="module")
+def lib() -> eac.Library:
+    return eac.load_library()  # furniture.eac is in the standard library
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_door_leaf_hinges_on_its_side_and_opens_towards_the_viewer(lib, side: str) -> None:  # type: ignore[no-untyped-def]
+    leaf = lib["DoorLeaf"].instantiate(size=(0.5, 0.7, 0.02), hinge_side=side)
+    axes = Kinematics.of(leaf).joint_axes()
+    edge = -0.25 if side == "left" else 0.25
+    np.testing.assert_allclose(axes.origins[0][[0, 2]], [edge, 0.0], atol=1e-12)
+    opened = leaf.with_joints({"hinge": np.pi / 2})
+    # the free edge's back corner swings out in front of the hinge, by the leaf's width
+    free = np.array([[-edge + 0.0, 0.0, 0.0]])
+    moved = opened.link_pose("leaf") @ np.array([*free[0], 1.0])
+    np.testing.assert_allclose(moved[:3], [edge, 0.0, 0.5], atol=1e-9)
+    # the handle sits `handle_inset` from the free edge
+    g = leaf.grasp("handle.pull")
+    assert abs(g[0, 3] - (-edge - (0.05 if side == "left" else -0.05))) < 1e-9
+
+
+def test_drawer_slides_its_front_tray_and_handle_but_not_its_rails(lib) -> None:  # type: ignore[no-untyped-def]
+    drawer = lib["Drawer"].instantiate(front=(0.6, 0.2, 0.018), depth=0.45, travel=0.4)
+    out = drawer.with_joints({"slide": 0.3})
+    np.testing.assert_allclose(out.link_pose("drawer")[:3, 3], [0, 0, 0.3], atol=1e-12)
+    np.testing.assert_allclose(
+        out.grasp("handle.pull")[:3, 3] - drawer.grasp("handle.pull")[:3, 3], [0, 0, 0.3]
+    )
+    # the tray is open at the top: the middle of the tray's opening is outside the drawer
+    tray_top = np.array([[0.0, 0.1 - 0.02 - 0.001, -0.2]])
+    inside_tray = np.array([[0.0, 0.0, -0.2]])
+    assert drawer.sdf(tray_top)[0] > 0 and drawer.sdf(inside_tray)[0] > 0.05
+    with pytest.raises(RequirementError, match="runners"):
+        lib["Drawer"].instantiate(depth=0.3, travel=0.4)
+
+
+def test_cabinet_is_hollow_and_stands_on_a_recessed_plinth(lib) -> None:  # type: ignore[no-untyped-def]
+    cab = lib["BoardCabinet"].instantiate(size=(0.6, 0.72, 0.56), board=0.018)
+    sdf = cab.sdf(np.array([[0.0, 0.0, 0.0], [-0.29, 0.0, 0.0]]))
+    assert sdf[0] > 0.2  # the middle of the carcass is empty
+    assert sdf[1] < 0  # inside the left board
+    # the plinth: under the carcass, its front board 50 mm behind the carcass's front
+    below = -0.36 - 0.05
+    front = cab.sdf(np.array([[0.0, below, 0.28 - 0.05 - 0.009], [0.0, below, 0.28 - 0.02]]))
+    assert front[0] < 0 < front[1]
+
+
+def test_chest_drawers_are_stacked_and_slide_apart(lib) -> None:  # type: ignore[no-untyped-def]
+    chest = lib["BoardChest3"].instantiate(size=(0.8, 0.78, 0.48))
+    assert set(chest.concept.moving_joints) == {"drawer1.slide", "drawer2.slide", "drawer3.slide"}
+    ys = [chest.link_pose(f"drawer{k}.drawer")[1, 3] for k in (1, 2, 3)]
+    h = (0.78 - 4 * 0.003) / 3
+    np.testing.assert_allclose(ys, [0.003 + h, 0.0, -0.003 - h], atol=1e-12)
+    opened = chest.with_joints({"drawer2.slide": 0.2})
+    assert opened.link_pose("drawer2.drawer")[2, 3] == pytest.approx(0.24 + 0.2)
+    assert opened.link_pose("drawer1.drawer")[2, 3] == pytest.approx(0.24)
+
+
+def test_mujoco_collides_with_the_boards(lib) -> None:  # type: ignore[no-untyped-def]
+    cab = lib["BoardCabinet"].instantiate()
+    model = mujoco.MjModel.from_xml_string(export_mjcf(cab))
+    boxes = sum(model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX for g in range(model.ngeom))
+    assert boxes >= 5 + 1  # the carcass's five boards and the door's panel, at least
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    # the carcass's cavity is in no geom's bounding box (one mesh of the carcass, collided as
+    # its convex hull, would hold it)
+    centre = np.zeros(3)
+    for g in range(model.ngeom):
+        rot = data.geom_xmat[g].reshape(3, 3)
+        local = rot.T @ (centre - data.geom_xpos[g]) - model.geom_aabb[g, :3]
+        assert not np.all(np.abs(local) < model.geom_aabb[g, 3:]), model.geom(g).name
