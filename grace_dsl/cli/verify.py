@@ -84,8 +84,7 @@ def run_verify(args: argparse.Namespace, lib: Library) -> int:
     try:
         hand = Gripper.load(args.gripper)
     except ParameterError as exc:
-        sys.stderr.write(f"eacc verify: {exc}
-")
+        sys.stderr.write(f"eacc verify: {exc}\n")
         return 2
     reports = []
     for scale in args.scale:
