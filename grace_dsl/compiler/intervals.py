@@ -30,6 +30,7 @@ from grace_dsl.compiler.evaluate import reads
 from grace_dsl.compiler.interval_backend import EITHER, INTERVALS, Interval, hull, iv
 from grace_dsl.compiler.resolve import flat_members
 from grace_dsl.compiler.types import Dim, Type, format_si
+from grace_dsl.compiler.values import bound_target
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic
 
@@ -239,12 +240,14 @@ def _argument_candidates(
     if sub is None:
         return
     for a in args:
-        if a.name not in sub.bounds:
+        bound = bound_target(done, target, a.name) if a.name else None
+        if bound is None or bound[1] not in bound[0].bounds:
             continue
-        lo, hi = sub.bounds[a.name]
+        owner, param = bound
+        lo, hi = owner.bounds[param]
         box = boxes.get(id(a.value))
         if box is not None and not _inside(box, lo, hi):
-            dim = sub.param_types[a.name].dim
+            dim = owner.param_types[param].dim
             yield _Candidate("E236", a.value, "range", lo, hi, f"`{a.name}` of {target}", dim)
 
 

@@ -139,6 +139,12 @@ class Lowered:
     variants: dict[str, tuple[str, dict[str, str]]] = field(default_factory=dict)
 
 
+# A value a host binds, computed when first read: a part's argument may read a sibling part's
+# parameters, nested ones included (``drawer1.handle.radius``), so no part's values can be
+# computed before every part's scope exists.
+Binding = Callable[[], Any]
+
+
 @dataclass(frozen=True)
 class _Scope:
     """One concept or part being flattened: its evaluator and its parts' scopes."""
@@ -148,7 +154,7 @@ class _Scope:
     ev: Evaluator
     parts: dict[str, _Scope]
     lifted: frozenset[str] = frozenset()  # its parameters lifted into the flat model
-    bound: dict[str, Any] = field(default_factory=dict)  # the values its host binds
+    bound: dict[str, Binding] = field(default_factory=dict)  # the values its host binds
 
 
 def lower(checked: Checked, name: str, backend: Backend, make_symbol: MakeSymbol) -> Lowered:
@@ -180,23 +186,28 @@ class _Instance:
     ) -> None:
         self._emit(self._scope(cc, prefix, bindings), host_pose, host_link)
 
-    def _scope(self, cc: CheckedConcept, prefix: str, bindings: dict[str, Any]) -> _Scope:
+    def _scope(self, cc: CheckedConcept, prefix: str, bindings: dict[str, Binding]) -> _Scope:
         """The evaluator of a concept (or part) and, recursively, of its parts.
 
         ``bindings`` gives the concept's parameters that its host binds, and with dotted keys
         (``handle.length``) parameters of its nested parts; the others are lifted.  Parts'
-        scopes are made here, depth first, so a host can read ``left.handle.length``."""
+        scopes are made here, depth first, before any bound value is computed: bound values
+        are read on demand, so an argument can read ``left.handle.length`` of a sibling part
+        declared before or after it (the checker rejects cycles, E119)."""
         decl = cc.decl
         env: dict[str, Any] = {}
         for p in (m for m in decl.members if isinstance(m, ast.Param)):
-            env[p.name] = bindings[p.name] if p.name in bindings else self._lift(cc, p, prefix)
+            if p.name not in bindings:
+                env[p.name] = self._lift(cc, p, prefix)
         lets = {m.name: m for m in _all(decl) if isinstance(m, ast.Let)}
         parts = [m for m in _all(decl) if isinstance(m, ast.Part)]
         args = {f"{m.name}.{a.name}": a.value for m in parts for a in m.args if a.name}
         shapes = {m.name: m for m in _all(decl) if isinstance(m, ast.Shape)}
         scopes: dict[str, _Scope] = {}
 
-        def on_demand(name: str) -> Any:  # lets, part arguments, shape cues; no cycles (checker)
+        def on_demand(name: str) -> Any:  # bound values, lets, part arguments, shape cues
+            if name in bindings:
+                return bindings[name]()
             head, _, field = name.partition(".")
             if head in shapes:
                 return self._cue(shapes[head], field, ev)
@@ -255,7 +266,7 @@ class _Instance:
                 if param in scope.lifted:
                     out.append((prefix + param, v))
                     continue
-                value = scope.bound.get(param)
+                value = _read(scope.bound, param)
                 decided = _decide(value, v, scope.cc.param_types.get(param))
                 if decided is False:
                     out = [("", 0)]
@@ -266,7 +277,9 @@ class _Instance:
             if out:
                 self.out.masks[prefix + name] = out
         for name, (param, options) in scope.cc.decl.variants:
-            host = prefix + param if param in scope.lifted else _symbol_name(scope.bound.get(param))
+            host = (
+                prefix + param if param in scope.lifted else _symbol_name(_read(scope.bound, param))
+            )
             if host is not None:
                 self.out.variants[prefix + name] = (
                     host,
@@ -293,29 +306,26 @@ class _Instance:
         return tuple(symbols) if t.kind == "vec" else symbols[0]
 
     def _part_bindings(
-        self, part: ast.Part, prefix: str, ev: Evaluator, bindings: dict[str, Any]
-    ) -> dict[str, Any]:
+        self, part: ast.Part, prefix: str, ev: Evaluator, bindings: dict[str, Binding]
+    ) -> dict[str, Binding]:
         """Every parameter of a part: its argument's value, a value the host's host binds
         (``bindings["handle.length"]``), or a lifted parameter of the host; and the values
-        bound for the part's own nested parts (``grip.size``).
+        bound for the part's own nested parts (``grip.size``), each read from ``ev`` when
+        first needed.
 
         Lifting comes first, in declaration order, so the parameter vector's layout does not
         depend on which arguments read which part parameters."""
         sub = self.checked.concepts[part.concept]
         given = {a.name for a in part.args if a.name is not None}
         own = f"{part.name}."
-        for p in (m for m in sub.decl.members if isinstance(m, ast.Param)):
-            key = own + p.name
-            if key in bindings:
-                ev.env[key] = bindings[key]
-            elif p.name not in given:
-                ev.env[key] = self._lift(sub, p, prefix + own)
-        out = {
-            p.name: ev.lookup(own + p.name) for p in sub.decl.members if isinstance(p, ast.Param)
-        }
+        params = [m for m in sub.decl.members if isinstance(m, ast.Param)]
+        for p in params:
+            if own + p.name not in bindings and p.name not in given:
+                ev.env[own + p.name] = self._lift(sub, p, prefix + own)
+        out = {p.name: _reader(ev, own + p.name) for p in params}
         for name in given:
             if "." in name:
-                out[name] = ev.lookup(own + name)
+                out[name] = _reader(ev, own + name)
         for key, value in bindings.items():
             if key.startswith(own) and "." in key[len(own) :]:
                 out[key[len(own) :]] = value
@@ -493,6 +503,16 @@ class _Instance:
                 tuple(dict.fromkeys(prefix + n for n in reads(r.cond))),
             )
         )
+
+
+def _reader(ev: Evaluator, name: str) -> Binding:
+    """A binding that reads ``name`` from the host's evaluator."""
+    return lambda: ev.lookup(name)
+
+
+def _read(bound: dict[str, Binding], name: str) -> Any:
+    """The value a host binds to ``name``, or None when it binds none."""
+    return bound[name]() if name in bound else None
 
 
 def _decide(value: Any, v: int | str, t: Type | None) -> bool | None:

@@ -96,19 +96,23 @@ class _ValueChecker:
         if sub is None or not sub.ok:
             return
         values = dict(sub.defaults)
-        for a in (a for a in args if a.name in sub.param_types):
-            assert a.name is not None
+        for a in args:
+            bound = bound_target(self.done, target, a.name) if a.name else None
+            if a.name is None or bound is None or bound[1] not in bound[0].param_types:
+                continue
             value = ev.lookup(prefix + a.name) if prefix else ev(a.value)
-            values[a.name] = value
-            if a.name in sub.bounds and not _within(value, *sub.bounds[a.name]):
-                lo, hi = sub.bounds[a.name]
-                dim = sub.param_types[a.name].dim
+            if a.name in sub.param_types:
+                values[a.name] = value
+            owner, param = bound
+            if param in owner.bounds and not _within(value, *owner.bounds[param]):
+                lo, hi = owner.bounds[param]
+                dim = owner.param_types[param].dim
                 self.err(
                     "E209",
                     f"`{a.name}` = {format_si(value, dim)} at the defaults lies "
                     f"outside the range of {target}",
                     a.value.span,
-                    f"{target}.{a.name} is in [{format_si(lo, dim)}, {format_si(hi, dim)}]",
+                    f"{owner.decl.name}.{param} is in [{format_si(lo, dim)}, {format_si(hi, dim)}]",
                 )
         sub_ev = evaluator_at(sub.decl, values, self.done, self.types)
         if sub_ev is None:
@@ -372,6 +376,27 @@ def evaluator_at(
     qualified = frozenset([*(p.name for p in parts), *shapes])
     ev = Evaluator(backend, types, env, value, qualified, needs, observe)
     return ev
+
+
+def bound_target(
+    done: dict[str, CheckedConcept], concept: str, name: str
+) -> tuple[CheckedConcept, str] | None:
+    """The checked concept and parameter that argument ``name`` of a part made with
+    ``concept`` binds: its own (``length``) or a nested part's (``handle.length`` binds
+    ``length`` of the part ``handle``).  None when a concept on the way did not check."""
+    *path, param = name.split(".")
+    for step in path:
+        sub = done.get(concept)
+        found = [
+            m
+            for m in (flat_members(sub.decl) if sub is not None else ())
+            if isinstance(m, ast.Part) and m.name == step
+        ]
+        if not found:
+            return None
+        concept = found[0].concept
+    sub = done.get(concept)
+    return (sub, param) if sub is not None and sub.ok else None
 
 
 def _within(value: Any, lo: Any, hi: Any) -> bool:

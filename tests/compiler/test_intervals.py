@@ -189,6 +189,24 @@ def test_a_part_argument_leaving_the_parts_range(tmp_path: Path) -> None:
     assert [d.code for d in found] == ["E236"]
 
 
+def test_a_nested_part_argument_leaving_the_nested_range(tmp_path: Path) -> None:
+    """``D(k.r: ...)`` binds ``r`` of D's part ``k``: it is judged against K's range."""
+    header = (
+        "concept K { param r : length in [10mm, 40mm] = 20mm }\n"
+        "concept D {\nparam s : length in [1mm, 2mm] = 1mm\npart k = K()\n}\n"
+    )
+    found = diags(
+        tmp_path, "param w : length in [10mm, 100mm] = 50mm\npart d = D(k.r: w / 2)", header
+    )
+    assert [d.code for d in found] == ["E236"]
+    assert "`k.r` of D" in found[0].message and "[10mm, 40mm]" in found[0].message
+    assert "it is 5mm at w = 10mm" in (found[0].hint or "")
+    safe = diags(
+        tmp_path, "param w : length in [20mm, 80mm] = 50mm\npart d = D(k.r: w / 2)", header
+    )
+    assert safe == []
+
+
 def test_a_non_finite_range_bound_or_default_is_an_error(tmp_path: Path) -> None:
     """Regression: a NaN bound disabled range checking (instantiate(r=-5.0) was accepted)."""
     found = diags(

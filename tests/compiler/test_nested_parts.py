@@ -77,6 +77,7 @@ concept Binds {
         ("part left = Door(handle.size: 1mm)", "E116", "no parameter `size`"),
         ("part left = FixedDoor(handle.length: 90mm)", "E116", "already given by FixedDoor"),
         ("part left = Door(handle.length: 5)", "E204", "bare number"),
+        ("part left = Door(handle.length: 20mm)", "E209", "Handle.length is in [50mm, 300mm]"),
     ],
 )
 def test_nested_parameter_errors(tmp_path: Path, body: str, code: str, words: str) -> None:
@@ -96,3 +97,42 @@ def test_the_interval_pass_ranges_over_nested_parameters(tmp_path: Path) -> None
     diags = front_end([path])[2]
     assert [(d.code, d.severity) for d in diags] == [("E233", "warning")]
     assert "crosses 0" in (diags[0].hint or "") and "left.handle.length = " in (diags[0].hint or "")
+
+
+def test_arguments_read_nested_parameters_of_sibling_parts(tmp_path: Path) -> None:
+    """``Door(handle.length: a.handle.length)``: a part's argument reads a parameter of a part
+    of another part, declared before or after it, lifted or bound there."""
+    path = write(
+        tmp_path,
+        "c.eac",
+        PARTS
+        + """\
+concept Row {
+    part a = Door()
+    part b = Door(handle.length: a.handle.length)
+    part c = Door(handle.length: d.handle.length + 10mm, width: a.handle.length * 4)
+    part d = FixedDoor()
+    grasp cw = trans(0mm, c.width, 0mm) width 10mm
+}
+""",
+    )
+    row = compile_paths([path])["Row"]
+    names = [p["name"] for p in row.entry["params"]]
+    # the layout is that of the parts' declarations, whatever the arguments read
+    assert names == ["a.width", "b.width", "d.width", "a.handle.length"]
+    inst = row.instantiate(**{"a.handle.length": 0.12, "d.width": 0.6})
+    assert np.isclose(inst.grasp("a.handle.g")[2, 3], 0.12)
+    assert np.isclose(inst.grasp("b.handle.g")[2, 3], 0.12)
+    assert np.isclose(inst.grasp("c.handle.g")[2, 3], 0.6 / 4 + 0.01)  # FixedDoor binds width/4
+    assert np.isclose(inst.grasp("cw")[1, 3], 0.48)
+
+
+def test_sibling_arguments_reading_each_other_are_a_cycle(tmp_path: Path) -> None:
+    body = (
+        "part a = Door(handle.length: b.handle.length)\n"
+        "part b = Door(handle.length: a.handle.length)"
+    )
+    path = write(tmp_path, "c.eac", PARTS + "concept T {\n" + body + "\n}\n")
+    diags = front_end([path])[2]
+    assert [d.code for d in diags] == ["E119"]
+    assert "a.handle.length -> b.handle.length -> a.handle.length" in diags[0].message
