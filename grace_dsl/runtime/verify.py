@@ -296,6 +296,9 @@ def _times(value: Any, scale: float) -> Any:
 def scaled_defaults(concept: Concept, scale: float) -> dict[str, Any]:
     """The defaults with every length multiplied by ``scale`` (choices by name)."""
     out = concept.defaults()
+    for q in concept.params:  # defaults() gives a bool as 0.0/1.0, which instantiate refuses
+        if q.kind == "bool":
+            out[q.name] = bool(out[q.name])
     for p in scaled_specs(concept, scale):
         if p.kind in ("num", "vec") and p.dim == "length":
             out[p.name] = p.default

@@ -50,6 +50,14 @@ def test_a_requirement_forbids_a_scale(lib) -> None:  # type: ignore[no-untyped-
     assert forbidding_requirement(lib["StraightHandle"], 2.0) == ""
 
 
+def test_scaled_defaults_keep_bools(lib) -> None:  # type: ignore[no-untyped-def]
+    """A bool parameter stays a bool, so a concept with one is forbidden by name, not drawn."""
+    assert scaled_defaults(lib["DoorLeaf"], 0.3)["handle_vertical"] is True
+    why = forbidding_requirement(lib["DoorLeaf"], 0.3)
+    assert "the handle leaves the free edge to push on" in why
+    assert forbidding_requirement(lib["DoorLeaf"], 2.0) == ""
+
+
 def test_a_scaled_run_round_trips_through_json(lib) -> None:  # type: ignore[no-untyped-def]
     report = verify_library(lib, ["RoundKnob", "StraightHandle"], draws=2, seed=1, scale=0.3)
     assert report.scale == 0.3
