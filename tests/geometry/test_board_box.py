@@ -80,9 +80,10 @@ def test_sign_is_mesh_containment_and_value_is_distance_to_the_mesh(
     surface = np.asarray(trimesh.proximity.closest_point(mesh, pts)[1])
     clear = surface > 1e-6  # off the surface, containment is well defined
     assert np.array_equal(d[clear] < 0, mesh.contains(pts[clear]))
-    # trimesh's closest point misses by a few micrometres on long thin triangles; the distance
-    # to the mesh's faces (rectangles), computed point by point, is exact
-    np.testing.assert_allclose(np.abs(d), surface, atol=1e-5)
+    # trimesh's closest point is a point on the mesh, so its distance bounds |d| from above; its
+    # candidate search can miss the nearest of long thin triangles by micrometres (seen: 15 um at
+    # 0.26 mm), so the exact check is the distance to every face, computed point by point
+    assert np.all(np.abs(d) <= surface + 1e-9)
     np.testing.assert_allclose(np.abs(d), _face_distance(mesh, pts), atol=1e-9)
 
 
