@@ -17,7 +17,7 @@ import numpy as np
 from grace_dsl.render import style
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.kinematics import Kinematics
-from grace_dsl.runtime.masks import has_masks, present
+from grace_dsl.runtime.masks import presence
 
 if TYPE_CHECKING:
     from grace_dsl.runtime.instance import Instance
@@ -224,20 +224,12 @@ def describe(inst: Instance, grasps: int = 3, resolution: int = 48) -> Scene:
     )
 
 
-def _present_in(inst: Instance) -> Any:
-    """Whether a grasp or action exists in this instance (repeated copies, variant options)."""
-    entry = inst.concept.entry
-    if not has_masks(entry):
-        return lambda name: True
-    params = inst.params
-    return lambda name: present(entry, params, name)
-
 
 def _frames(inst: Instance, n: int, length: float) -> list[GraspFrame]:
     out: list[GraspFrame] = []
     if n == 0:
         return out
-    here = _present_in(inst)
+    here = presence(inst.concept.entry, inst.params)
     for name, entry in inst.concept.grasps.items():
         if not here(name):
             continue
@@ -248,7 +240,7 @@ def _frames(inst: Instance, n: int, length: float) -> list[GraspFrame]:
 
 def _forces(inst: Instance, notes: list[str]) -> list[Force]:
     out = []
-    here = _present_in(inst)
+    here = presence(inst.concept.entry, inst.params)
     for action, entry in inst.concept.actions.items():
         if not here(action):
             continue
@@ -283,7 +275,7 @@ def _joint_axes(inst: Instance, draft: Scene) -> list[JointAxis]:
         return []
     world = Kinematics.of(inst).joint_axes()  # unit axes and points on them, in the world
     size, out = draft.size, []
-    here = _present_in(inst)
+    here = presence(inst.concept.entry, inst.params)
     for i, name in enumerate(world.names):
         if not here(name):
             continue

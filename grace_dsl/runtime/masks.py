@@ -11,7 +11,7 @@ grasp of the option the instance has chosen.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from grace_dsl.runtime.errors import UnknownNameError
@@ -51,6 +51,14 @@ def present(entry: Mapping[str, Any], params: Mapping[str, Any], name: str) -> b
     masks = entry.get("masks") or {}
     parts = name.split(".")
     return all(_absent(masks, params, ".".join(parts[: i + 1])) is None for i in range(len(parts)))
+
+
+def presence(entry: Mapping[str, Any], params: Mapping[str, Any]) -> Callable[[str], bool]:
+    """A test of which members (``drawer[2].pull``, ``handle@bar.pull``) an instance with these
+    parameters has: every name for a concept without repeats or variants."""
+    if not has_masks(entry):
+        return lambda name: True
+    return lambda name: present(entry, params, name)
 
 
 def count(entry: Mapping[str, Any], params: Mapping[str, Any], base: str) -> int:

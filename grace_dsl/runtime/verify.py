@@ -68,7 +68,7 @@ from grace_dsl.runtime.errors import (
 )
 from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
-from grace_dsl.runtime.masks import has_masks, present
+from grace_dsl.runtime.masks import presence
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec
@@ -544,7 +544,8 @@ class _Run:
     def _check_state(self, state: Instance) -> None:
         geo = _Geometry(state)
         self.evaluated["shape"] += 1
-        here = _present_in(state)  # repeated copies and variant options it has
+        # the repeated copies and variant options this draw has
+        here = presence(state.concept.entry, state.params)
         samples = {g: self._grasp_samples(state, g) for g in self.concept.grasps if here(g)}
         for ss in samples.values():
             if ss:
@@ -830,14 +831,6 @@ class _Run:
         )
         self._record(inst, member, s, _at_most("follow", drift, ATTACHED, "", message))
 
-
-def _present_in(state: Instance) -> Any:
-    """Whether a member exists in this state (``runtime/masks.py``)."""
-    entry = state.concept.entry
-    if not has_masks(entry):
-        return lambda name: True
-    params = state.params
-    return lambda name: present(entry, params, name)
 
 
 def _action_grasps(concept: Concept, entry: ActionSpec) -> list[str]:
