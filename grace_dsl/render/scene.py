@@ -224,7 +224,6 @@ def describe(inst: Instance, grasps: int = 3, resolution: int = 48) -> Scene:
     )
 
 
-
 def _frames(inst: Instance, n: int, length: float) -> list[GraspFrame]:
     out: list[GraspFrame] = []
     if n == 0:

@@ -832,7 +832,6 @@ class _Run:
         self._record(inst, member, s, _at_most("follow", drift, ATTACHED, "", message))
 
 
-
 def _action_grasps(concept: Concept, entry: ActionSpec) -> list[str]:
     """The grasps an action is performed with: its ``using``, else those on the link it moves
     (every grasp for an action along a fixed direction)."""
