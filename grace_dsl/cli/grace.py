@@ -1,4 +1,4 @@
-"""``grace``: the GRACE pipeline's command line: ``grace demo`` and ``grace plan``."""
+"""``grace``: the GRACE pipeline's command line: ``grace demo``, ``grace plan``, ``grace bench``."""
 
 from __future__ import annotations
 
@@ -24,12 +24,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo_parser.add_argument(
         "-o", "--output", default="out/demo", help="where the picture and viewer page go"
     )
+    from grace_dsl.cli.bench_cmd import add_bench_arguments, run_bench
     from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
 
     add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
+    add_bench_arguments(
+        sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
+    )
     args = parser.parse_args(argv)
     if args.command == "plan":
         return run_plan(args)
+    if args.command == "bench":
+        return run_bench(args)
     if args.command != "demo":
         parser.print_help()
         return 2

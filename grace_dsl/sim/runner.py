@@ -168,9 +168,11 @@ def _default_fn() -> EpisodeFn:
     """The real episode, imported only when asked for (it needs MuJoCo)."""
     try:
         from grace_dsl.sim.episode import run_episode
-    except ImportError as exc:
+    except ModuleNotFoundError as exc:
+        if exc.name == "grace_dsl.sim.episode":
+            raise RunnerError("this grace_dsl has no simulated episode (grace_dsl.sim.episode)")
         raise RunnerError(
-            f"the simulated episode cannot be imported ({exc}); install the simulator with "
+            f"the simulated episode needs {exc.name}: install the simulator with "
             "`pip install -e .[sim]`"
         ) from exc
     return run_episode
