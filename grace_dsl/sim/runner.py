@@ -170,7 +170,9 @@ def _default_fn() -> EpisodeFn:
         from grace_dsl.sim.episode import run_episode
     except ModuleNotFoundError as exc:
         if exc.name == "grace_dsl.sim.episode":
-            raise RunnerError("this grace_dsl has no simulated episode (grace_dsl.sim.episode)")
+            raise RunnerError(
+                "this grace_dsl has no simulated episode (grace_dsl.sim.episode)"
+            ) from None
         raise RunnerError(
             f"the simulated episode needs {exc.name}: install the simulator with "
             "`pip install -e .[sim]`"
