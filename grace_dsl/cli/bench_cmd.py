@@ -214,9 +214,9 @@ def _check_hand(hand: str) -> None:
 
 def _check_categories(categories: Sequence[str]) -> None:
     """Every category a library concept with ``open`` and ``close`` acting on a joint."""
-    from grace_dsl.runtime.library import load_library
+    from grace_dsl.sim.runner import shared_library
 
-    library = load_library()
+    library = shared_library()
     for name in categories:
         concept = library[name]  # UnknownNameError with a suggestion
         missing = [a for a in ("open", "close") if a not in concept.actions]

@@ -180,17 +180,27 @@ def _default_fn() -> EpisodeFn:
     return run_episode
 
 
-_WARMED = False
+_LIBRARY: Any = None
+
+
+def shared_library() -> Any:
+    """The standard library, loaded once per process and kept.
+
+    ``load_library`` parses and checks every source on each call (seconds) before it finds the
+    compiled units in the cache; an episode that calls it would pay that every time. This is the
+    per-process copy the workers warm and the bench's argument checks use.
+    """
+    global _LIBRARY
+    if _LIBRARY is None:
+        from grace_dsl.runtime.library import load_library
+
+        _LIBRARY = load_library()
+    return _LIBRARY
 
 
 def _warm_once() -> None:
     """Load the compiled standard library once per process (compiling only if uncached)."""
-    global _WARMED
-    if not _WARMED:
-        from grace_dsl.runtime.library import load_library
-
-        load_library()
-        _WARMED = True
+    shared_library()
 
 
 def _pool_task(fn: EpisodeFn, config: EpisodeConfig, seed: int, warm: bool) -> EpisodeRecord:
