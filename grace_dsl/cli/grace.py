@@ -46,10 +46,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
 
-def demo(output: Path) -> int:
+def demo(output: Path, episodes: bool = False) -> int:
     """Compile the standard library, list it, and put the paper's sunken door through its paces:
     a grasp, the force and path that open it, the manipulation functions a Panda hand and a
-    hand that cannot close would use, and a picture and 3D page of it all."""
+    hand that cannot close would use, and a picture and 3D page of it all. With ``episodes``,
+    then simulate the demo's episodes (``demo_episodes``)."""
     status = eacc_main(["list"])
     if status:
         return status
@@ -69,7 +70,21 @@ def demo(output: Path) -> int:
         for hand in (panda, no_fingers):
             _print_options(door, action, hand)
     _pictures(door, output)
+    if episodes:
+        demo_episodes(output / "bench")
     return 0
+
+
+def demo_episodes(output: Path, fn: Any = None) -> dict[str, Any]:
+    """A drawer and a door opened and closed by the flying Panda hand, one episode each
+    (``bench_cmd.demo_jobs``), the table printed and the report written to ``output``; ``fn``
+    replaces the simulated episode. Returns the run's summary."""
+    from grace_dsl.cli.bench_cmd import bench, demo_jobs
+
+    result = bench(demo_jobs(), output, fn=fn, settings=None)
+    print_text("\nsimulated episodes (flying Panda hand, seed 0):\n" + result.table)
+    print_text(f"report: {output}")
+    return result.summary
 
 
 def _print_options(inst: Any, action: str, hand: Any) -> None:

@@ -144,3 +144,16 @@ def test_two_real_episodes_through_the_cli(tmp_path: Path) -> None:
         assert r.q_range[0] - 1e-6 <= r.q_initial <= r.q_range[1] + 1e-6
         assert r.strict <= r.lenient  # strict success implies lenient success
     assert (tmp_path / "success.png").is_file()
+
+
+def test_demo_episodes_hook_runs_the_demo_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from grace_dsl.cli.bench_cmd import DEMO_CATEGORIES
+    from grace_dsl.cli.grace import demo_episodes
+
+    summary = demo_episodes(tmp_path, fn=coin_episode)
+    assert [c["category"] for c in summary["categories"]] == list(DEMO_CATEGORIES)
+    assert summary["run"]["episodes_total"] == 4
+    assert "CabinetDrawer" in capsys.readouterr().out
+    assert len(read_jsonl(tmp_path / "episodes.jsonl")) == 4
