@@ -215,7 +215,9 @@ def _run_pool(
     """A spawn pool (no forked MuJoCo or GL state); a worker that dies costs its episodes."""
     out: list[EpisodeRecord | None] = [None] * len(jobs)
     init = _warm_once if warm else None
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=init) as pool:
+    context = get_context("spawn")
+    pool = ProcessPoolExecutor(min(workers, len(jobs)), mp_context=context, initializer=init)
+    try:
         futures: dict[Future[EpisodeRecord], int] = {
             pool.submit(_pool_task, fn, c, s, warm): i for i, (c, s) in enumerate(jobs)
         }
@@ -226,6 +228,8 @@ def _run_pool(
                 i = futures[future]
                 out[i] = _collect(future, *jobs[i])
                 advance()
+    finally:  # on Ctrl-C, episodes not started are dropped rather than run to the end
+        pool.shutdown(wait=True, cancel_futures=True)
     return [r for r in out if r is not None]
 
 
