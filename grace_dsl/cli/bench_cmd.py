@@ -71,8 +71,18 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
         help=f"concepts to test (default: {len(DEFAULT_CATEGORIES)} drawers, doors, lids, windows)",
     )
     p.add_argument("--episodes", type=int, default=100, help="per category and task (100)")
-    p.add_argument("--mode", choices=("oracle", "estimated"), default="oracle")
-    p.add_argument("--agent", choices=("gripper", "arm"), default="gripper")
+    p.add_argument(
+        "--mode",
+        choices=("oracle", "estimated"),
+        default="oracle",
+        help="oracle: the true concept and parameters; estimated (from the camera): not built yet",
+    )
+    p.add_argument(
+        "--agent",
+        choices=("gripper", "arm"),
+        default="gripper",
+        help="gripper: a flying Panda hand (default); arm: the whole Panda on a base",
+    )
     p.add_argument("--hand", default="panda", help="a shipped hand or a hand file (panda)")
     p.add_argument("--scale", default="1,1", metavar="LO,HI", help="object size factor (1,1)")
     p.add_argument("--seed", type=int, default=0, help="the run's seed (0)")
