@@ -261,7 +261,11 @@ def _run_ray(
         if not address.startswith("ray://"):  # this machine: its workers see this checkout
             path = os.pathsep.join(p for p in sys.path if p)
             kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": path}}
-        ray.init(address=address, include_dashboard=False, log_to_driver=False, **kwargs)
+        try:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, **kwargs)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RunnerError(f"cannot start or reach Ray at {address!r}: {first}") from exc
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(_pool_task)
         refs = {task.remote(fn, c, s, warm): i for i, (c, s) in enumerate(jobs)}

@@ -143,6 +143,9 @@ def test_bad_worker_count_is_a_typed_error() -> None:
 def test_ray_local_instance_runs_episodes_in_order() -> None:
     import ray
 
+    if not os.environ.get("RAY_ADDRESS"):  # no cluster to join: a typed error, not a traceback
+        with pytest.raises(RunnerError, match="cannot start or reach Ray at 'auto'"):
+            run_episodes(JOBS[:1], fn=toy_episode, ray_address="auto", progress=False)
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         jobs = JOBS[:2]
