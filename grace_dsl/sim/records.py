@@ -24,6 +24,7 @@ FAILURE_REASONS = (
     "wrong_direction",  # the joint moved, but against the task
     "timeout",  # the episode's simulated time ran out short of the goal
     "invalid_draw",  # the drawn parameters violate the concept's requirements
+    "error",  # the episode's own code raised: a bug to fix, never a physical outcome
 )
 
 
