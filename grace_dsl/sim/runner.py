@@ -32,9 +32,9 @@ from grace_dsl.sim.records import FAILURE_REASONS, EpisodeConfig, EpisodeRecord,
 EpisodeFn = Callable[[EpisodeConfig, int], EpisodeRecord]
 Job = tuple[EpisodeConfig, int]
 
-#: The reason given to an episode that raised something no other reason explains. The vocabulary
-#: has no "the episode crashed" entry; its detail starts with ``RAISED`` so a report can tell.
-CRASH_REASON = "error" if "error" in FAILURE_REASONS else "timeout"
+#: The reason given to an episode whose own code raised; its detail starts with ``RAISED`` and
+#: holds the exception and the last frames of its traceback.
+CRASH_REASON = "error"
 RAISED = "raised "
 TASKS: tuple[Task, ...] = ("open", "close")
 
