@@ -28,19 +28,28 @@ def lib() -> eac.Library:
 
 
 def _start(inst: eac.Instance, action: str, grasp: str) -> np.ndarray:
-    """The unit direction in which ``grasp``'s point starts to move along ``action``."""
-    g = inst.grasp(grasp)
-    spec = inst.concept.actions[action]
-    lo, hi = inst.joint_limits()[spec["joint"]]
-    target = lo + 0.02 * (hi - lo) if action.startswith("open") else lo
-    path = inst.follow(action, grasp=g, to=target, steps=3)
+    """The unit direction in which ``grasp``'s point starts to move along ``action``: from the
+    closed state for an opening action, from half open for a closing one."""
+    joint = inst.concept.actions[action]["joint"]
+    lo, hi = inst.joint_limits()[joint]
+    opening = action.startswith("open")
+    start = inst if opening else inst.with_joints({joint: (lo + hi) / 2})
+    q0 = start.joints[joint]
+    target = q0 + (1e-4 if opening else -1e-4) * (hi - lo)
+    path = start.follow(action, grasp=start.grasp(grasp), to=target, steps=2)
     step = path[-1, :3, 3] - path[0, :3, 3]
     return step / np.linalg.norm(step)
 
 
+def _falls_forward(direction: np.ndarray) -> bool:
+    """Mostly towards the viewer (+z), a little down (a point in front of a bottom hinge line
+    starts along the circle about it), never sideways."""
+    return bool(direction[2] > 0.95 and -0.3 < direction[1] <= 1e-9 and abs(direction[0]) < 1e-9)
+
+
 def test_drop_door_falls_towards_the_viewer_and_lies_level_above_its_hinge(lib) -> None:  # type: ignore[no-untyped-def]
     door = lib["DropDoor"].instantiate(size=(0.6, 0.5, 0.04), opening=np.pi / 2)
-    np.testing.assert_allclose(_start(door, "open", "handle.pull"), [0, 0, 1], atol=1e-6)
+    assert _falls_forward(_start(door, "open", "handle.pull"))
     opened = door.with_joints({"hinge": np.pi / 2})
     # the back face's top edge ends one thickness above the hinge line (the front of the
     # bottom edge), a door height in front of it: the door lies level, above the hinge
@@ -63,8 +72,9 @@ def test_dishwasher_is_a_hollow_tub_on_a_recessed_kick_plate(lib) -> None:  # ty
     assert kick[0] < 0 < kick[1]  # its front board sits 50 mm back
     # the door covers the front and its top falls towards the viewer
     assert dw.sdf(np.array([[0.0, 0.0, 0.28 + 0.02]]))[0] < 0
-    np.testing.assert_allclose(_start(dw, "open", "door.handle.pull"), [0, 0, 1], atol=1e-6)
-    np.testing.assert_allclose(_start(dw, "close", "door.handle.pull"), [0, 0, -1], atol=1e-6)
+    assert _falls_forward(_start(dw, "open", "door.handle.pull"))
+    back = _start(dw, "close", "door.handle.pull")  # from half open: up and back
+    assert back[1] > 0.5 and back[2] < -0.5
 
 
 def test_oven_door_and_drawer_move_their_own_links(lib) -> None:  # type: ignore[no-untyped-def]
@@ -78,7 +88,7 @@ def test_oven_door_and_drawer_move_their_own_links(lib) -> None:  # type: ignore
     )
     np.testing.assert_array_equal(opened.link_pose("door.leaf"), oven.link_pose("door.leaf"))
     np.testing.assert_allclose(_start(oven, "open_drawer", "drawer.handle.pull"), [0, 0, 1])
-    np.testing.assert_allclose(_start(oven, "open", "door.handle.pull"), [0, 0, 1], atol=1e-6)
+    assert _falls_forward(_start(oven, "open", "door.handle.pull"))
     # the drawer's handle is in the bottom 150 mm, the door's above it, under the strip
     low, high = oven.grasp("drawer.handle.pull")[1, 3], oven.grasp("door.handle.pull")[1, 3]
     assert -0.37 < low < -0.37 + 0.15 < high < 0.37 - 0.1
@@ -126,9 +136,14 @@ def test_mjcf_loads_in_mujoco_and_moves_as_the_instance(lib, name: str) -> None:
     values = {}
     for j in moving:
         lo, hi = inst.joint_limits()[j.source]
-        values[j.source] = lo + 0.6 * (hi - lo) if np.isfinite(hi - lo) else 0.7
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)
-        np.testing.assert_allclose(model.jnt_range[jid], [lo, hi], atol=1e-9)
+        if np.isfinite(hi - lo):
+            values[j.source] = lo + 0.6 * (hi - lo)
+            assert model.jnt_limited[jid]
+            np.testing.assert_allclose(model.jnt_range[jid], [lo, hi], atol=1e-9)
+        else:  # the dial turns without a stop
+            values[j.source] = 0.7
+            assert not model.jnt_limited[jid]
         data.qpos[model.jnt_qposadr[jid]] = values[j.source]
     mujoco.mj_forward(model, data)
     moved = inst.with_joints(values)
