@@ -90,7 +90,7 @@ def run_show(args: Any, library: Any) -> int:
 
 
 def _subtitle(inst: Any) -> str:
-    joints = ", ".join(f"{n} = {v:.4g}" for n, v in zip(inst.concept.moving_joints, inst.q))
+    joints = ", ".join(f"{n} = {v:.4g}" for n, v in inst.joints.items())  # present copies only
     return joints or "no moving joints"
 
 

@@ -140,6 +140,7 @@ class _Expander:
         self._check_ranges(members)
         members = self._drop_bad(members)
         self._inherit(members)
+        self._check_reads(members)
         masks = tuple(sorted(self.masks.items()))
         variants = tuple(sorted(self.variants.items()))
         return replace(self.c, members=tuple(members), masks=masks, variants=variants)
@@ -252,8 +253,8 @@ class _Expander:
                     "narrow the counts' ranges or move repeated members into a part",
                 )
             return []
-        if isinstance(m, ast.Require):
-            return [replace(m, cond=self._x(m.cond, env))]
+        if isinstance(m, ast.Require):  # a copy's requirement holds only when it exists
+            return [replace(m, cond=_when(cond, self._x(m.cond, env)))]
         if isinstance(m, ast.Param):
             return [m]
         name = self._name(m.name, m.index, env, m.name_span)
@@ -588,6 +589,39 @@ class _Expander:
             if isinstance(a, ast.Action) and a.joint is not None:
                 join(a.name, a.joint.split(".")[0])
 
+    def _check_reads(self, members: list[Any]) -> None:
+        """E128 where a declaration reads a copy that may be absent when it is present.
+
+        Why a diagnostic and not a mask: every copy is compiled, so an absent copy's values
+        still evaluate, and a `let total = w[0] + w[2]` outside the loop would silently add a
+        drawer the instance does not have.  Masking `total` in turn would make whatever reads
+        it vanish with the copy.  The reader says what it means instead: it lives in the same
+        loop (its own mask then covers the copy), or it guards the read with the count
+        (`if n > 2 then w[2] else 0mm`)."""
+        if not self.masks:
+            return
+        reported: set[ast.Span] = set()  # the copies of a loop share their source: once
+        for m in _walk_members(members):
+            if isinstance(m, ast.For):
+                continue
+            owner = self.masks.get(getattr(m, "name", ""), ())
+            for e in _exprs(m):
+                for ref, span, facts in _reads(e, owner):
+                    need = self.masks.get(ref) or self.masks.get(ref.split(".")[0], ())
+                    missing = [c for c in need if not _implied(c, facts)]
+                    if not missing or span in reported:
+                        continue
+                    reported.add(span)
+                    what = f"`{m.name}`" if hasattr(m, "name") else "this requirement"
+                    when = " and ".join(_show(c) for c in missing)
+                    self.err(
+                        "E128",
+                        f"{what} reads `{ref}`, which exists only when {when}",
+                        span,
+                        "read it inside the loop that makes it, or guard the read with the count: "
+                        f"`if {_show(missing[0])} then {ref} else ...`",
+                    )
+
     def _drop_bad(self, members: list[Any]) -> list[Any]:
         """Declarations with a bad index go, like a syntax error's: no follow-on errors."""
         if not self.bad:
@@ -602,6 +636,90 @@ class _Expander:
                 m = replace(m, members=kept)
             out.append(m)
         return out
+
+
+def _when(cond: Cond, e: ast.Expr) -> ast.Expr:
+    """``e`` as a requirement of a masked copy: true when the copy is absent."""
+    for param, k in reversed(cond):
+        if not param:
+            continue
+        name = ast.Name(param, e.span)
+        absent = (
+            ast.Binary("!=", name, ast.String(k, e.span), e.span)
+            if isinstance(k, str)
+            else ast.Binary("<=", name, ast.Number(str(k), None, e.span), e.span)
+        )
+        e = ast.Binary("or", absent, e, e.span)
+    return e
+
+
+_Fact = tuple[str, int | str]  # as in Cond: (count, k) says count > k; (choice, option) ==
+
+
+def _reads(
+    e: ast.Expr, facts: Iterable[_Fact]
+) -> Iterator[tuple[str, ast.Span, tuple[_Fact, ...]]]:
+    """Every name ``e`` reads, with what the ``if``/``and``/``or`` around it establish."""
+    known = tuple(facts)
+    if isinstance(e, ast.Name):
+        yield e.id, e.span, known
+    elif isinstance(e, ast.Member) and isinstance(e.obj, ast.Name):
+        yield f"{e.obj.id}.{e.field}", e.span, known
+    elif isinstance(e, ast.IfExpr):
+        yield from _reads(e.cond, known)
+        yield from _reads(e.then, known + _facts(e.cond, True))
+        yield from _reads(e.orelse, known + _facts(e.cond, False))
+    elif isinstance(e, ast.Binary) and e.op in ("and", "or"):
+        yield from _reads(e.left, known)
+        yield from _reads(e.right, known + _facts(e.left, e.op == "and"))
+    else:
+        for kid in ast._children(e):
+            yield from _reads(kid, known)
+
+
+def _facts(cond: ast.Expr, holds: bool) -> tuple[_Fact, ...]:
+    """What ``cond`` being ``holds`` says about counts (n > k) and choices (kind == "bar")."""
+    if isinstance(cond, ast.Unary) and cond.op == "not":
+        return _facts(cond.operand, not holds)
+    if isinstance(cond, ast.Binary) and cond.op in ("and", "or"):
+        if (cond.op == "and") == holds:  # both sides are known
+            return _facts(cond.left, holds) + _facts(cond.right, holds)
+        return ()
+    if not (isinstance(cond, ast.Binary) and cond.op in ast.COMPARISONS):
+        return ()
+    op, left, right = cond.op, cond.left, cond.right
+    if not isinstance(left, ast.Name):  # `2 < n` as `n > 2`
+        flip = {"<": ">", ">": "<", "<=": ">=", ">=": "<=", "==": "==", "!=": "!="}
+        op, left, right = flip[op], right, left
+    if not isinstance(left, ast.Name):
+        return ()
+    if not holds:
+        op = {"<": ">=", ">": "<=", "<=": ">", ">=": "<", "==": "!=", "!=": "=="}[op]
+    if isinstance(right, ast.String):
+        return ((left.id, right.value),) if op == "==" else ()
+    k = const_int(right, {})
+    if k is None:
+        return ()
+    return {">": ((left.id, k),), ">=": ((left.id, k - 1),)}.get(op, ())
+
+
+def _implied(need: _Fact, facts: Iterable[_Fact]) -> bool:
+    param, k = need
+    if not param:  # a count or choice the host binds: the host's own masks decide
+        return True
+    for p, v in facts:
+        if p != param:
+            continue
+        if isinstance(k, str) and v == k:
+            return True
+        if isinstance(k, int) and isinstance(v, int) and v >= k:
+            return True
+    return False
+
+
+def _show(c: _Fact) -> str:
+    param, k = c
+    return f'{param} == "{k}"' if isinstance(k, str) else f"{param} > {k}"
 
 
 def _ranges(indices: set[tuple[int, ...]]) -> str:

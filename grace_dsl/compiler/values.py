@@ -101,7 +101,7 @@ class _ValueChecker:
             if a.name is None or bound is None or bound[1] not in bound[0].param_types:
                 continue
             value = ev.lookup(prefix + a.name) if prefix else ev(a.value)
-            if a.name in sub.param_types:
+            if a.name in sub.param_types or "." in a.name:  # `handle.length`: a nested part's
                 values[a.name] = value
             owner, param = bound
             if param in owner.bounds and not _within(value, *owner.bounds[param]):
@@ -117,15 +117,53 @@ class _ValueChecker:
         sub_ev = evaluator_at(sub.decl, values, self.done, self.types)
         if sub_ev is None:
             return
-        for r in (x for x in sub.decl.members if isinstance(x, ast.Require)):
-            if not bool(sub_ev(r.cond)):
+        self._check_requires(m, target, sub.decl, sub_ev)
+        # a dotted argument (`handle.length`) also binds the nested part's own requirements
+        # (and those of every part on the way: `door.handle.length` binds the door's too)
+        paths = {a.name.rsplit(".", 1)[0] for a in args if a.name and "." in a.name}
+        levels = {".".join(p.split(".")[: k + 1]) for p in paths for k in range(p.count(".") + 1)}
+        for path in sorted(levels):
+            found = self._nested(sub.decl, sub_ev, path, values)
+            if found is not None:
+                decl, nested_ev = found
+                self._check_requires(m, f"{target}'s part `{path}` ({decl.name})", decl, nested_ev)
+
+    def _check_requires(
+        self, m: ast.Part | ast.Shape, what: str, decl: ast.Concept, ev: Evaluator
+    ) -> None:
+        for r in (x for x in decl.members if isinstance(x, ast.Require)):
+            if not bool(ev(r.cond)):
                 self.err(
                     "E210",
-                    f"with these arguments, {target} fails its requirement"
+                    f"with these arguments, {what} fails its requirement"
                     + (f" ({r.message})" if r.message else ""),
                     getattr(m, "name_span", m.span),
                     f"at {r.cond.span.file}:{r.cond.span.line}",
                 )
+
+    def _nested(
+        self, decl: ast.Concept, ev: Evaluator, path: str, values: dict[str, Any]
+    ) -> tuple[ast.Concept, Evaluator] | None:
+        """The concept of the nested part at ``path`` (``handle``, ``door.handle``) and its
+        evaluator with the values its hosts give it; None when one on the way did not check."""
+        for depth, step in enumerate(path.split(".")):
+            part = next(
+                (p for p in flat_members(decl) if isinstance(p, ast.Part) and p.name == step),
+                None,
+            )
+            sub = self.done.get(part.concept) if part is not None else None
+            if sub is None or not sub.ok:
+                return None
+            here = ".".join(path.split(".")[: depth + 1]) + "."
+            given = {k: ev.lookup(f"{step}.{k}") for k in sub.param_types}
+            given.update(  # deeper bindings: `door.handle.length` reaches the handle
+                {k[len(here) :]: v for k, v in values.items() if k.startswith(here)}
+            )
+            nested = evaluator_at(sub.decl, given, self.done, self.types)
+            if nested is None:
+                return None
+            decl, ev = sub.decl, nested
+        return decl, ev
 
     def _check_param_values(self, out: CheckedConcept) -> None:
         ev = Evaluator(NUMPY, self.types, {})

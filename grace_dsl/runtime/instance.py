@@ -114,7 +114,7 @@ class Instance:
         _check_limits(concept, limits)
         q = np.zeros(len(concept.moving_joints))
         if joints is not None:
-            _set_joints(concept, q, joints, limits)
+            _set_joints(concept, q, _present_joints(concept, p, joints), limits)
         inst = Instance(concept, _read_only(p), _read_only(q), _read_only(as_pose(pose)), limits)
         if valid:
             _check_valid(inst)
@@ -124,7 +124,8 @@ class Instance:
         """The same instance with some joints moved (the others keep their values): only the
         joint values are checked, against ranges computed when the instance was made."""
         q = self.q.copy()
-        _set_joints(self.concept, q, merge_names("joints", joints, values), self._limits)
+        given = _present_joints(self.concept, self.p, merge_names("joints", joints, values))
+        _set_joints(self.concept, q, given, self._limits)
         return Instance(self.concept, self.p, _read_only(q), self.pose, self._limits, self._ranges)
 
     def with_pose(self, pose: Any, /) -> Instance:
@@ -159,13 +160,41 @@ class Instance:
 
     @property
     def joints(self) -> dict[str, float]:
-        """``{joint: value}`` of the moving joints."""
-        return dict(zip(self.concept.moving_joints, self.q.tolist()))
+        """``{joint: value}`` of the moving joints this instance has: a copy its counts leave
+        out (``slide[3]`` at ``n = 2``) or an option it did not choose is not listed, though
+        ``q`` (the compiled functions' input) keeps a value for every compiled joint."""
+        values = self.q.tolist()
+        return {n: values[i] for i, n in self._present_joints()}
 
     def joint_limits(self) -> dict[str, tuple[float, float]]:
-        """``{joint: (lo, hi)}`` at these parameters; a continuous joint's are (-inf, inf)."""
+        """``{joint: (lo, hi)}`` at these parameters, for the joints it has (as ``joints``); a
+        continuous joint's are (-inf, inf)."""
         lo, hi = self._limits
-        return {n: (a, b) for n, a, b in zip(self.concept.moving_joints, lo, hi)}
+        return {n: (lo[i], hi[i]) for i, n in self._present_joints()}
+
+    def _present_joints(self) -> list[tuple[int, str]]:
+        """(index in ``q``, name) of the moving joints this instance has."""
+        names = self.concept.moving_joints
+        if not masks.has_masks(self.concept.entry):
+            return list(enumerate(names))
+        here = masks.presence(self.concept.entry, self._mask_params())
+        return [(i, n) for i, n in enumerate(names) if here(n)]
+
+    @property
+    def grasp_names(self) -> tuple[str, ...]:
+        """The grasps this instance has (compiled names; the chosen variant option's only)."""
+        return self._members(self.concept.grasps)
+
+    @property
+    def action_names(self) -> tuple[str, ...]:
+        """The actions this instance has (compiled names), as ``grasp_names``."""
+        return self._members(self.concept.actions)
+
+    def _members(self, names: Any) -> tuple[str, ...]:
+        if not masks.has_masks(self.concept.entry):
+            return tuple(names)
+        here = masks.presence(self.concept.entry, self._mask_params())
+        return tuple(n for n in names if here(n))
 
     @property
     def links(self) -> tuple[str, ...]:
@@ -629,6 +658,20 @@ def _check_valid(inst: Instance) -> None:
                 f"these parameters ({pairs}; {spec.where})"
             )
     ShapeTree(inst).check()  # a ShapeError (a ParameterError) names the shape
+
+
+def _present_joints(concept: Concept, p: np.ndarray, joints: Any) -> Any:
+    """``joints`` with each name read as the instance with parameters ``p`` means it (a joint
+    of a variant part through the chosen option); ``UnknownNameError`` naming the valid
+    indices for a copy it does not have (``runtime/masks.py``)."""
+    entry = concept.entry
+    if not masks.has_masks(entry) or not isinstance(joints, Mapping):
+        return joints
+    params = {s.name: s.decode(p[s.offset : s.offset + s.size]) for s in concept.params}
+    return {
+        masks.canonical(entry, params, n, "joint") if isinstance(n, str) else n: v
+        for n, v in joints.items()
+    }
 
 
 def _set_joints(concept: Concept, q: np.ndarray, joints: Any, limits: _Limits) -> None:

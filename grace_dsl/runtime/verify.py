@@ -901,7 +901,7 @@ def _display(inst: Instance, grasp: str | None, free: Mapping[str, float]) -> di
             out[p.name] = f'"{v}"'
         else:
             out[p.name] = str(v) if p.kind == "bool" else format_si(v, p.dim)
-    for name, q in zip(c.moving_joints, inst.q):
+    for name, q in inst.joints.items():  # the joints this draw has
         out[f"q.{name}"] = format_si(q, _joint_dim(c, name))
     if grasp is not None:
         dims = {f["name"]: f.get("dim") for f in c.grasps[grasp]["free"]}
@@ -915,7 +915,7 @@ def _si(inst: Instance, free: Mapping[str, float]) -> dict[str, Any]:
     (with ``ranges="valid"`` for a report at a scale other than 1) and
     ``inst.grasp(name, **free)`` reproduce the failure."""
     params = {k: list(v) if isinstance(v, tuple) else v for k, v in inst.params.items()}
-    joints = {n: float(q) for n, q in zip(inst.concept.moving_joints, inst.q)}
+    joints = {n: float(q) for n, q in inst.joints.items()}
     return {
         "params": params,
         "joints": joints,
