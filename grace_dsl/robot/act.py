@@ -84,6 +84,7 @@ class ActionPlan:
     joint_values: FloatArray
     base: FloatArray
     seconds: tuple[tuple[str, float], ...] = ()  # planning time per stage (grasp, approach, ...)
+    standoff: float = 0.0  # metres the hand stopped short of the grasp pose (``_standoff``)
 
     @property
     def duration(self) -> float:
@@ -141,7 +142,7 @@ def plan_action(
         path, values, to_value = _action_path(inst, action, choice.ik.grasp_pose, to, steps)
         times: list[tuple[str, float]] = []
         try:
-            parts = _phases(
+            parts, standoff = _phases(
                 robot,
                 inst,
                 choice,
@@ -160,25 +161,25 @@ def plan_action(
             failures.append(exc)
             continue
         clock += times
-        lost = [(c.option.grasp, _why(e, k)) for k, (c, e) in enumerate(zip(found, failures))]
+        lost = [(c.option.grasp, _why(e, i)) for i, (c, e) in enumerate(zip(found, failures))]
         others = [(c.option.grasp, f"not tried (margin {c.margin:.3f})") for c in found[k + 1 :]]
         choice = replace(choice, rejected=tuple(rejected + lost + others))
         break
     else:
         goal = f" to {joint} = {to_value:g}" if joint is not None and to_value is not None else ""
-        exc = max(failures, key=_progress)
+        worst = max(failures, key=_progress)
         tried = f" ({len(failures)} grasp postures tried; the furthest)" * (len(failures) > 1)
         raise ActionPlanningError(
-            f"{inst.concept.name}: cannot {action}{goal} from this base placement{tried}: {exc}",
-            phase=exc.phase,
-            reason=exc.reason,
-            value=exc.value,
+            f"{inst.concept.name}: cannot {action}{goal} from this base placement{tried}: {worst}",
+            phase=worst.phase,
+            reason=worst.reason,
+            value=worst.value,
         ) from None
     timed = [_time(robot, q, v, scene, acceleration) for q, v, scene in parts]
     clock.append(("timing", time.perf_counter()))
     plan = _assemble(robot, choice, to_value, joint, timed, base_m)
     stages = tuple((name, b - a) for (_, a), (name, b) in zip(clock[:-1], clock[1:]))
-    return replace(plan, seconds=stages)
+    return replace(plan, seconds=stages, standoff=standoff)
 
 
 def _why(exc: ActionPlanningError, k: int) -> str:
@@ -207,9 +208,9 @@ def _phases(
     seed: int,
     time_limit: float,
     clock: list[tuple[str, float]],
-) -> list[tuple[FloatArray, FloatArray, _Object]]:
+) -> tuple[list[tuple[FloatArray, FloatArray, _Object]], float]:
     """The four phases' joint waypoints, object joint values and collision scenes, checked
-    (``clock`` gets the times the tracked phases and the approach were done).
+    (``clock`` gets the times the tracked phases and the approach were done), and the standoff.
 
     The cheap, decisive part first: from the grasp posture, the insert tracked backwards to the
     pre-grasp pose, then the interaction and the retreat; only then the approach (OMPL) from
@@ -245,7 +246,7 @@ def _phases(
         (insert, np.full(len(insert), start_value), moving),
         (interact, held_values, moving),
         (retreat, np.full(len(retreat), held_values[-1]), moving),
-    ]
+    ], off
 
 
 def _standoff(

@@ -32,8 +32,20 @@ HEIGHT = 0.50  # metres above the base
 STEP_BACK = 0.05  # metres the object moves away while the home configuration touches it
 MAX_STEPS_BACK = 8
 # Base shifts (metres, in the first base's frame) tried after it: back from the object (an
-# opening door or drawer comes toward the robot), to either side (a door swings sideways).
-SHIFTS = ((-0.1, 0.0), (-0.1, 0.1), (-0.1, -0.1), (-0.2, 0.0), (0.0, 0.15), (0.0, -0.15))
+# opening door or drawer comes toward the robot), to either side (a door swings sideways), back
+# and to the side (a drop-down door), closer (a lid or a roller door goes up and away).
+SHIFTS = (
+    (-0.1, 0.0),
+    (-0.1, 0.1),
+    (-0.1, -0.1),
+    (-0.2, 0.0),
+    (0.0, 0.15),
+    (0.0, -0.15),
+    (-0.15, 0.2),
+    (-0.15, -0.2),
+    (0.1, 0.0),
+)
+PLACEMENTS = 1 + len(SHIFTS)
 JITTER = 0.02  # metres of seeded jitter on each shift
 
 
@@ -101,7 +113,12 @@ class Placed:
 
 
 def placements(
-    inst: Any, action: str, base: FloatArray | None = None, *, seed: int = 0, count: int = 6
+    inst: Any,
+    action: str,
+    base: FloatArray | None = None,
+    *,
+    seed: int = 0,
+    count: int = PLACEMENTS,
 ) -> list[FloatArray]:
     """``count`` base poses to try for ``action`` on ``inst``: ``base`` (default the origin),
     then ``SHIFTS`` in that base's own frame (back from the object, to either side) with a
@@ -126,7 +143,7 @@ def plan_placed(
     *,
     base: FloatArray | None = None,
     seed: int = 0,
-    count: int = 6,
+    count: int = PLACEMENTS,
     **options: Any,
 ) -> Placed:
     """``plan_action`` from the first of :func:`placements` that can do the action: a person
