@@ -36,7 +36,7 @@ RESULTS = ROOT / "bench" / "results" / "plan.json"
 
 
 def plan_concepts(
-    names: list[str], seeds: int, fraction: float, quiet: bool, placements: int = 10
+    names: list[str], seeds: int, fraction: float, quiet: bool, placements: int = 12
 ) -> dict:
     import grace_dsl as eac
     from grace_dsl.robot.placement import default_instance, jitter, plan_placed
@@ -134,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=None, help="base placements per concept (2)")
     ap.add_argument("--fraction", type=float, default=0.3, help="of the joint range (0.3)")
     ap.add_argument(
-        "--placements", type=int, default=10, help="base poses tried per plan (10; 1: no search)"
+        "--placements", type=int, default=12, help="base poses tried per plan (12; 1: no search)"
     )
     ap.add_argument("--configs", type=int, default=None, help="per collision scene (20)")
     ap.add_argument("--only", nargs="*", default=None, help="concept names")

@@ -41,6 +41,8 @@ from grace_dsl.runtime.errors import GraceError
 FloatArray = np.ndarray
 MAX_JOINT_STEP = 0.2  # radians between two tracked samples
 APPROACH = 0.10  # metres backed off along the approach axis before and after the grasp
+MIN_RETREAT = 0.04  # metres: the finger pads (19 mm) and a handle's depth (at most 2 cm)
+RETREATS = (APPROACH, 0.07, MIN_RETREAT)  # metres backed out, the longest the arm can track
 PUSH_DISTANCE = 0.10  # metres travelled by an action that moves no joint
 MIN_SEGMENT = 1e-3  # metres: tracked segments are halved down to this where joints move fast
 RELAX_STEP = 0.05  # radians of self-motion toward mid-range per tracked sample
@@ -230,8 +232,7 @@ def _phases(
         robot, to_base @ path, q_grasp, "following the action", values, joint
     )
     _check(moving, interact, held_values, "following the action")
-    retreat_poses = _line(to_base @ path[-1], to_base @ path[-1] @ _back(APPROACH), 8)
-    retreat, _ = _track(robot, retreat_poses, interact[-1], "backing out")
+    retreat = _retreat(robot, to_base @ path[-1], interact[-1])
     _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
@@ -247,6 +248,22 @@ def _phases(
         (interact, held_values, moving),
         (retreat, np.full(len(retreat), held_values[-1]), moving),
     ], off
+
+
+def _retreat(robot: Robot, end: FloatArray, q: FloatArray) -> FloatArray:
+    """The hand backed out along its approach axis from the pose ``end`` where the action left
+    it: ``APPROACH`` when the arm can, else the longest of ``RETREATS`` it can track (at least
+    ``MIN_RETREAT``, which takes the finger pads and a handle's depth off the part)."""
+    failure: ActionPlanningError | None = None
+    for length in RETREATS:
+        try:
+            qs, _ = _track(robot, _line(end, end @ _back(length), 8), q, "backing out")
+        except ActionPlanningError as exc:
+            failure = failure or exc
+            continue
+        return qs
+    assert failure is not None
+    raise failure
 
 
 def _standoff(

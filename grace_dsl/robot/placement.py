@@ -8,8 +8,9 @@ until it does not. ``jitter`` moves the robot base (x, y, yaw) for seeded variat
 
 A fixed base cannot do every action from the default spot: a drop-down door's handle comes down
 and toward the robot, a side-hinged door swings across it. ``plan_placed`` tries a few base
-poses, the given one first, then seeded shifts back and to the sides facing the grasps, and
-keeps the first from which the whole action plans (``Placed.tried`` says how many it took).
+poses, the given one first, then the one moved along with the middle of the action's hand path,
+then seeded shifts back and to the sides facing the grasps, and keeps the first from which the
+whole action plans (``Placed.tried`` says how many it took).
 """
 
 from __future__ import annotations
@@ -44,8 +45,9 @@ SHIFTS = (
     (-0.15, 0.2),
     (-0.15, -0.2),
     (0.1, 0.0),
+    (0.2, 0.0),
 )
-PLACEMENTS = 1 + len(SHIFTS)
+PLACEMENTS = 2 + len(SHIFTS)  # tried by plan_placed: the given base, the centred one, the shifts
 JITTER = 0.02  # metres of seeded jitter on each shift
 
 
@@ -121,7 +123,7 @@ def placements(
     count: int = PLACEMENTS,
 ) -> list[FloatArray]:
     """``count`` base poses to try for ``action`` on ``inst``: ``base`` (default the origin),
-    then ``SHIFTS`` in that base's own frame (back from the object, to either side) with a
+    then ``SHIFTS`` in that base's own frame (back from the object, to either side, closer) with a
     seeded jitter of ``JITTER`` metres, each turned to face the action's grasps. Deterministic
     for a seed."""
     first = np.eye(4) if base is None else np.asarray(base, float)
@@ -133,6 +135,28 @@ def placements(
         yaw = math.atan2(target[1] - y, target[0] - x)
         out.append(first @ base_pose(float(x), float(y), yaw))
     return out
+
+
+def _centred(inst: Any, action: str, to: float | None, base: FloatArray) -> FloatArray | None:
+    """``base`` moved on the floor by as much as the middle of the action's hand path (from the
+    grasps' centre, at the middle of their free parameters) lies off the grasps' centre: the
+    robot stands where the motion, not only its start, is in front of it. None for an action
+    that moves no joint or whose path cannot be computed."""
+    spec = inst.concept.actions[action]
+    if spec.joint is None or not spec.using:
+        return None
+    lo, hi = inst.joint_limits()[spec.joint]
+    target = (hi if spec.opening else lo) if to is None else float(to)
+    grasp = spec.using[0]
+    middle = {f: (a + b) / 2 for f, (a, b) in inst.grasp_range(grasp).items()}
+    try:
+        path = inst.follow(action, grasp=inst.grasp(grasp, free=middle), to=target, steps=9)
+    except GraceError:
+        return None
+    shift = path[:, :3, 3].mean(axis=0) - path[0, :3, 3]
+    moved = np.asarray(base, float).copy()
+    moved[:2, 3] += shift[:2]
+    return moved
 
 
 def plan_placed(
@@ -152,7 +176,9 @@ def plan_placed(
     from grace_dsl.robot.act import ActionPlanningError, plan_action
 
     first: GraceError | None = None
-    poses = placements(inst, action, base, seed=seed, count=count)
+    poses = placements(inst, action, base, seed=seed, count=count - 1)
+    centred = _centred(inst, action, to, poses[0]) if count > 1 else None
+    poses = poses[:1] + ([centred] if centred is not None else []) + poses[1:]
     for k, pose in enumerate(poses):
         try:
             plan = plan_action(robot, inst, action, to, base=pose, seed=seed, **options)
