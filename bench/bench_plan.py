@@ -2,8 +2,10 @@
 
 Every concept with an ``open`` action, at its default parameters, stands in the default scene
 (``grace_dsl.robot.placement``: facing the robot, the action's grasps 0.6 m ahead at 0.5 m);
-``--seeds`` base placements per concept (seed 0 the default, others moved by up to 5 cm and
-0.15 rad, seeded) and ``plan_action`` opens it to ``--fraction`` of its joint's range:
+``--seeds`` starting base placements per concept (seed 0 the default, others moved by up to 5 cm
+and 0.15 rad, seeded); ``plan_placed`` opens it to ``--fraction`` of its joint's range from the
+first of ``--placements`` base poses that can (the starting one first; the figures report how
+often that alone worked):
 
 - approach: the grasp is chosen, the pre-grasp pose reached and a collision-free path found
   (success rate and planning time, grasp choice included);
@@ -17,6 +19,8 @@ with each concept's instance.
 
     python bench/bench_plan.py                # every concept, 2 seeds, 0.3 of the range
     python bench/bench_plan.py --smoke        # 2 concepts, 1 seed, no result file
+    python bench/bench_plan.py --fraction 1 --placements 1 --seeds 1 --out F   # how far each
+                                              # concept opens from the default placement
 """
 
 from __future__ import annotations
@@ -71,6 +75,9 @@ def plan_concepts(
                 row["approach_s"] = stages["grasp"] + stages["approach"]
                 row["duration_s"] = plan.duration
                 row["stages_s"] = stages
+            if joint:  # how far it was opened (planned) or could be (the failure's value)
+                value = to if row["ok"] else row["value"]
+                row["reached"] = 0.0 if value is None else abs(value - lo) / (hi - lo)
             row["seconds"] = time.perf_counter() - start
             rows.append(row)
             if not quiet:
@@ -96,8 +103,19 @@ def _summary(rows: list[dict]) -> dict:
         "max_action_s": max((r["seconds"] for r in ok), default=None),
         "median_trajectory_s": statistics.median(r["duration_s"] for r in ok) if ok else None,
         "failures": dict(Counter(f"{r['phase']}: {r['reason']}" for r in rows if not r["ok"])),
+        "reached": _reached(rows),
         "rows": rows,
     }
+
+
+def _reached(rows: list[dict]) -> dict:
+    """Per concept, the largest fraction of its joint's range opened or reached before failing
+    (a plan to the range's end, ``--fraction 1``, measures how far each can be opened)."""
+    out: dict[str, float] = {}
+    for r in rows:
+        if "reached" in r:
+            out[r["concept"]] = max(out.get(r["concept"], 0.0), r["reached"])
+    return out
 
 
 def collision_cost(names: list[str], configurations: int, seed: int) -> dict:
@@ -162,6 +180,13 @@ def main(argv: list[str] | None = None) -> int:
         f"{_s(report['median_approach_s'])} per approach, {_s(report['median_action_s'])} per "
         f"action; median trajectory {_s(report['median_trajectory_s'])}"
     )
+    reached = sorted(report["reached"].values())
+    if reached:
+        quartiles = np.percentile(reached, [0, 25, 50, 75, 100])
+        print(
+            "  fraction of the range reached per concept (min, quartiles, max): "
+            + ", ".join(f"{v:.2f}" for v in quartiles)
+        )
     for label, row in report["collision"].items():
         print(
             f"  {label:<16} collides {row['collides_us']:7.0f} us   distance "
