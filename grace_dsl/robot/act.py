@@ -1,12 +1,17 @@
 """A whole action as one joint trajectory: approach, insert, interact, retreat.
 
-``plan_action`` chooses the manipulation function with the robot in the loop (``choose_grasp``),
-plans a collision-free approach to a pre-grasp pose backed off along the approach axis (OMPL),
-moves straight in to the grasp, follows the action's analytic path (``inst.follow`` as its joint
-moves, or a straight push along the force for an action that moves no joint) by tracking it with
-the same IK warm-started from the previous sample, and backs out. Every tracked sample must be
-reached within the IK tolerance and move no joint by more than ``MAX_JOINT_STEP``; otherwise the
-plan fails with a reason, never with a jump.
+``plan_action`` takes the grasp postures of ``grasp_candidates`` (every feasible manipulation
+function, solved from several starts, best margin first) and tries them in turn. For each, the
+hand stops short of the grasp by the finger pads' standoff where their ends would press into the
+part, the straight insert is tracked backward from the grasp posture to a pre-grasp pose backed
+off along the approach axis, the action's analytic path (``inst.follow`` as its joint moves, or
+a straight push along the force for an action that moves no joint) is tracked with the same IK
+warm-started from the previous sample, and the hand backs out as far as it can (at least
+``MIN_RETREAT``). Every tracked sample must be reached within the IK tolerance and move no joint
+by more than ``MAX_JOINT_STEP``; otherwise that posture fails with a reason, never with a jump.
+After each sample the arm moves along its self-motion toward mid-range (``_relax``), keeping a
+margin to the joint limits. Only for a posture whose tracked phases all succeed is the approach
+planned (OMPL) from the start configuration to where the insert begins.
 
 Collisions are checked all the way: the approach against everything; moving in, the interaction
 and backing out against everything too, the object posed at the joint value the hand has moved
