@@ -237,7 +237,11 @@ def _phases(
         robot, to_base @ path, q_grasp, "following the action", values, joint
     )
     _check(moving, interact, held_values, "following the action")
-    retreat = _retreat(robot, to_base @ path[-1], interact[-1])
+    try:
+        retreat = _retreat(robot, to_base @ path[-1], interact[-1])
+    except ActionPlanningError as exc:  # the object was moved all the way: say how far
+        exc.value = float(held_values[-1]) if joint is not None else None
+        raise
     _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
