@@ -2,8 +2,10 @@
 
 Every concept with an ``open`` action, at its default parameters, stands in the default scene
 (``grace_dsl.robot.placement``: facing the robot, the action's grasps 0.6 m ahead at 0.5 m);
-``--seeds`` base placements per concept (seed 0 the default, others moved by up to 5 cm and
-0.15 rad, seeded) and ``plan_action`` opens it to ``--fraction`` of its joint's range:
+``--seeds`` starting base placements per concept (seed 0 the default, others moved by up to 5 cm
+and 0.15 rad, seeded); ``plan_placed`` opens it to ``--fraction`` of its joint's range from the
+first of ``--placements`` base poses that can (the starting one first; the figures report how
+often that alone worked):
 
 - approach: the grasp is chosen, the pre-grasp pose reached and a collision-free path found
   (success rate and planning time, grasp choice included);
@@ -17,6 +19,8 @@ with each concept's instance.
 
     python bench/bench_plan.py                # every concept, 2 seeds, 0.3 of the range
     python bench/bench_plan.py --smoke        # 2 concepts, 1 seed, no result file
+    python bench/bench_plan.py --fraction 1 --placements 1 --seeds 1 --out F   # how far each
+                                              # concept opens from the default placement
 """
 
 from __future__ import annotations
@@ -35,10 +39,11 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "plan.json"
 
 
-def plan_concepts(names: list[str], seeds: int, fraction: float, quiet: bool) -> dict:
+def plan_concepts(
+    names: list[str], seeds: int, fraction: float, quiet: bool, placements: int = 12
+) -> dict:
     import grace_dsl as eac
-    from grace_dsl.robot.act import plan_action
-    from grace_dsl.robot.placement import default_instance, jitter
+    from grace_dsl.robot.placement import default_instance, jitter, plan_placed
 
     lib = eac.load_library()
     robot = eac.Robot.panda()
@@ -53,22 +58,34 @@ def plan_concepts(names: list[str], seeds: int, fraction: float, quiet: bool) ->
             start = time.perf_counter()
             row = {"concept": name, "seed": seed, "to": to}
             try:
-                plan = plan_action(robot, inst, "open", to=to, base=jitter(seed), seed=seed)
+                placed = plan_placed(
+                    robot, inst, "open", to, base=jitter(seed), seed=seed, count=placements
+                )
             except eac.GraceError as exc:
                 phase = getattr(exc, "phase", "") or "grasp"
                 row.update(ok=False, approach=phase not in ("grasp", "pre-grasp", "approach"))
                 row.update(phase=phase, reason=getattr(exc, "reason", "") or "no grasp")
                 row["error"] = str(exc)[:300]
+                row["value"] = getattr(exc, "value", None)  # the joint value reached
             else:
+                plan = placed.plan
                 stages = dict(plan.seconds)
                 row.update(ok=True, approach=True, grasp=plan.choice.option.grasp)
+                row.update(placements_tried=placed.tried)
                 row["approach_s"] = stages["grasp"] + stages["approach"]
                 row["duration_s"] = plan.duration
                 row["stages_s"] = stages
+            if joint:  # how far it was opened (planned) or could be (the failure's value)
+                value = to if row["ok"] else row["value"]
+                row["reached"] = 0.0 if value is None else abs(value - lo) / (hi - lo)
             row["seconds"] = time.perf_counter() - start
             rows.append(row)
             if not quiet:
-                verdict = "ok" if row["ok"] else f"{row['phase']}: {row['reason']}"
+                verdict = (
+                    f"ok (placement {row['placements_tried']})"
+                    if row["ok"]
+                    else f"{row['phase']}: {row['reason']}"
+                )
                 print(f"  {name:<16} seed {seed}: {verdict} ({row['seconds']:.1f} s)", flush=True)
     return _summary(rows)
 
@@ -80,13 +97,25 @@ def _summary(rows: list[dict]) -> dict:
         "plans": len(rows),
         "approach_success": len(approach) / len(rows),
         "action_success": len(ok) / len(rows),
+        "first_placement_success": sum(r.get("placements_tried") == 1 for r in rows) / len(rows),
         "median_approach_s": statistics.median(r["approach_s"] for r in ok) if ok else None,
         "median_action_s": statistics.median(r["seconds"] for r in ok) if ok else None,
         "max_action_s": max((r["seconds"] for r in ok), default=None),
         "median_trajectory_s": statistics.median(r["duration_s"] for r in ok) if ok else None,
         "failures": dict(Counter(f"{r['phase']}: {r['reason']}" for r in rows if not r["ok"])),
+        "reached": _reached(rows),
         "rows": rows,
     }
+
+
+def _reached(rows: list[dict]) -> dict:
+    """Per concept, the largest fraction of its joint's range opened or reached before failing
+    (a plan to the range's end, ``--fraction 1``, measures how far each can be opened)."""
+    out: dict[str, float] = {}
+    for r in rows:
+        if "reached" in r:
+            out[r["concept"]] = max(out.get(r["concept"], 0.0), r["reached"])
+    return out
 
 
 def collision_cost(names: list[str], configurations: int, seed: int) -> dict:
@@ -122,6 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--seeds", type=int, default=None, help="base placements per concept (2)")
     ap.add_argument("--fraction", type=float, default=0.3, help="of the joint range (0.3)")
+    ap.add_argument(
+        "--placements", type=int, default=12, help="base poses tried per plan (12; 1: no search)"
+    )
     ap.add_argument("--configs", type=int, default=None, help="per collision scene (20)")
     ap.add_argument("--only", nargs="*", default=None, help="concept names")
     ap.add_argument("--smoke", action="store_true", help="no result file")
@@ -136,17 +168,25 @@ def main(argv: list[str] | None = None) -> int:
         names = args.only or ["CabinetDrawer", "SunkenDoor"]
     seeds = args.seeds or (1 if args.smoke else 2)
     started = time.perf_counter()
-    report = plan_concepts(names, seeds, args.fraction, args.quiet)
+    report = plan_concepts(names, seeds, args.fraction, args.quiet, args.placements)
     report["collision"] = collision_cost(names, args.configs or (5 if args.smoke else 20), seed=0)
-    report.update(concepts=names, seeds=seeds, fraction=args.fraction)
+    report.update(concepts=names, seeds=seeds, fraction=args.fraction, placements=args.placements)
     report["wall_s"] = time.perf_counter() - started
     print(
         f"{report['plans']} plans ({len(names)} concepts x {seeds} seeds, opened to "
         f"{args.fraction:g} of the range): approach {report['approach_success'] * 100:.0f}%, "
-        f"whole action {report['action_success'] * 100:.0f}%; median planning "
+        f"whole action {report['action_success'] * 100:.0f}% (from the first base placement "
+        f"{report['first_placement_success'] * 100:.0f}%); median planning "
         f"{_s(report['median_approach_s'])} per approach, {_s(report['median_action_s'])} per "
         f"action; median trajectory {_s(report['median_trajectory_s'])}"
     )
+    reached = sorted(report["reached"].values())
+    if reached:
+        quartiles = np.percentile(reached, [0, 25, 50, 75, 100])
+        print(
+            "  fraction of the range reached per concept (min, quartiles, max): "
+            + ", ".join(f"{v:.2f}" for v in quartiles)
+        )
     for label, row in report["collision"].items():
         print(
             f"  {label:<16} collides {row['collides_us']:7.0f} us   distance "

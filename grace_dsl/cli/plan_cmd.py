@@ -25,6 +25,8 @@ from grace_dsl.cli.units import UnitSyntaxError, quantity
 from grace_dsl.runtime.errors import GraceError, ParameterError
 
 PNG_SIZE = (1200, 900)
+DEFAULT_FRACTION = 0.9  # of the joint's range, the default --to (a range's very end is a stop)
+SHORTFALL = 0.95  # of the value reached, the retry when the default --to is out of reach
 
 
 def add_plan_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,7 +35,8 @@ def add_plan_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--to",
         metavar="Q",
-        help="the joint value to move to (rad or 45deg; m or 100mm); default: the end of its range",
+        help="the joint value to move to (rad or 45deg; m or 100mm); default: 90%% of its range, "
+        "or as far as this placement allows",
     )
     p.add_argument(
         "--base", metavar="X,Y,YAW", help="the robot base on the floor (m, m, rad or 30deg)"
@@ -64,7 +67,10 @@ def _run(args: Any) -> int:
     to = _joint_value(concept, args.action, args.to)
     base = base_pose(*_base(args.base)) if args.base else None
     started = time.perf_counter()
-    plan = plan_action(robot, inst, args.action, to=to, base=base, seed=args.seed)
+    if to is None:
+        plan = _as_far_as_allowed(robot, inst, args.action, base, args.seed)
+    else:
+        plan = plan_action(robot, inst, args.action, to=to, base=base, seed=args.seed)
     seconds = time.perf_counter() - started
     written = []
     if args.png:
@@ -85,6 +91,29 @@ def _run(args: Any) -> int:
     else:
         print_text(_text(inst, args.action, plan, seconds, written))
     return 0
+
+
+def _as_far_as_allowed(robot: Any, inst: Any, action: str, base: Any, seed: int) -> Any:
+    """The default ``--to``: ``DEFAULT_FRACTION`` of the joint's range the action drives along;
+    when this placement cannot get that far, ``SHORTFALL`` of the value the failed plan reached
+    (its error says where it stopped). An action that moves no joint: its push."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+
+    joint = inst.concept.actions[action].joint
+    if joint is None:
+        return plan_action(robot, inst, action, base=base, seed=seed)
+    lo, hi = inst.joint_limits()[joint]
+    start = float(inst.joints[joint])
+    end = hi if inst.concept.actions[action].opening else lo
+    try:
+        return plan_action(
+            robot, inst, action, to=start + DEFAULT_FRACTION * (end - start), base=base, seed=seed
+        )
+    except ActionPlanningError as exc:
+        if exc.value is None or abs(exc.value - start) < 1e-6:
+            raise
+        reached = start + SHORTFALL * (exc.value - start)
+    return plan_action(robot, inst, action, to=reached, base=base, seed=seed)
 
 
 def _joint_value(concept: Any, action: str, text: str | None) -> float | None:

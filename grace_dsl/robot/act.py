@@ -1,12 +1,17 @@
 """A whole action as one joint trajectory: approach, insert, interact, retreat.
 
-``plan_action`` chooses the manipulation function with the robot in the loop (``choose_grasp``),
-plans a collision-free approach to a pre-grasp pose backed off along the approach axis (OMPL),
-moves straight in to the grasp, follows the action's analytic path (``inst.follow`` as its joint
-moves, or a straight push along the force for an action that moves no joint) by tracking it with
-the same IK warm-started from the previous sample, and backs out. Every tracked sample must be
-reached within the IK tolerance and move no joint by more than ``MAX_JOINT_STEP``; otherwise the
-plan fails with a reason, never with a jump.
+``plan_action`` takes the grasp postures of ``grasp_candidates`` (every feasible manipulation
+function, solved from several starts, best margin first) and tries them in turn. For each, the
+hand stops short of the grasp by the finger pads' standoff where their ends would press into the
+part, the straight insert is tracked backward from the grasp posture to a pre-grasp pose backed
+off along the approach axis, the action's analytic path (``inst.follow`` as its joint moves, or
+a straight push along the force for an action that moves no joint) is tracked with the same IK
+warm-started from the previous sample, and the hand backs out as far as it can (at least
+``MIN_RETREAT``). Every tracked sample must be reached within the IK tolerance and move no joint
+by more than ``MAX_JOINT_STEP``; otherwise that posture fails with a reason, never with a jump.
+After each sample the arm moves along its self-motion toward mid-range (``_relax``), keeping a
+margin to the joint limits. Only for a posture whose tracked phases all succeed is the approach
+planned (OMPL) from the start configuration to where the insert begins.
 
 Collisions are checked all the way: the approach against everything; moving in, the interaction
 and backing out against everything too, the object posed at the joint value the hand has moved
@@ -25,7 +30,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from grace_dsl.robot.choose import GraspChoice, choose_grasp
+from grace_dsl.robot.choose import GraspChoice, grasp_candidates
 from grace_dsl.robot.collision import CollisionScene, collision_scene
 from grace_dsl.robot.ik import IKOptions, solve_ik
 from grace_dsl.robot.model import Robot, rigid_pose
@@ -41,9 +46,14 @@ from grace_dsl.runtime.errors import GraceError
 FloatArray = np.ndarray
 MAX_JOINT_STEP = 0.2  # radians between two tracked samples
 APPROACH = 0.10  # metres backed off along the approach axis before and after the grasp
+MIN_RETREAT = 0.04  # metres: the finger pads (19 mm) and a handle's depth (at most 2 cm)
+RETREATS = (APPROACH, 0.07, MIN_RETREAT)  # metres backed out, the longest the arm can track
 PUSH_DISTANCE = 0.10  # metres travelled by an action that moves no joint
 MIN_SEGMENT = 1e-3  # metres: tracked segments are halved down to this where joints move fast
-REACH_ATTEMPTS = 8
+RELAX_STEP = 0.05  # radians of self-motion toward mid-range per tracked sample
+CANDIDATES = 8  # grasp postures tried per action
+FINGERTIP_REACH = 0.0095  # metres the Panda's finger pads reach beyond the gripper frame
+STANDOFFS = (0.0, 0.0025, 0.005, 0.0075, FINGERTIP_REACH)  # metres short of the grasp
 FINGER_ALLOWANCE = 0.005  # metres the fingers may press into the link they hold
 FINGERS = ("panda_leftfinger", "panda_rightfinger")
 GRIP_TIME = 0.5  # seconds the hand rests while the gripper closes or opens
@@ -81,6 +91,7 @@ class ActionPlan:
     joint_values: FloatArray
     base: FloatArray
     seconds: tuple[tuple[str, float], ...] = ()  # planning time per stage (grasp, approach, ...)
+    standoff: float = 0.0  # metres the hand stopped short of the grasp pose (``_standoff``)
 
     @property
     def duration(self) -> float:
@@ -113,53 +124,81 @@ def plan_action(
     time_limit: float = 2.0,
     acceleration: float | FloatArray = DEFAULT_ACCELERATION,
     allowance: float = FINGER_ALLOWANCE,
+    candidates: int = CANDIDATES,
 ) -> ActionPlan:
     """The trajectory that performs ``action`` on ``inst`` to joint value ``to`` (default the
     end of the joint's range the action drives toward; for an action that moves no joint, a
-    push of ``PUSH_DISTANCE``). Raises :class:`ActionPlanningError` (or ``NoGraspError``) with
-    the reason when this base placement cannot do it."""
+    push of ``PUSH_DISTANCE``). The grasp postures of ``grasp_candidates`` are tried best margin
+    first (at most ``candidates``) until one carries the whole action. Raises
+    :class:`ActionPlanningError` (or ``NoGraspError``) with the reason of the candidate that got
+    furthest when this base placement cannot do it."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
-    choice = choose_grasp(robot, inst, action, base=base_m, seed=seed)
+    found, rejected = grasp_candidates(robot, inst, action, base=base_m, seed=seed)
     clock.append(("grasp", time.perf_counter()))
-    grasp = choice.ik.grasp_pose
     full = collision_scene(robot, inst, base=base_m)
-    link = inst.concept.grasps[choice.option.grasp].link
-    held = collision_scene(
-        robot, inst, base=base_m, touching=[(f, link) for f in FINGERS], allowance=allowance
-    )
-    path, values, to = _action_path(inst, action, grasp, to, steps)
     joint = inst.concept.actions[action].joint
-    try:
-        parts = _phases(
-            robot,
-            inst,
-            choice,
-            full,
-            held,
-            base_m,
-            q0,
-            path,
-            values,
-            joint,
-            seed,
-            time_limit,
-            clock,
+    failures: list[ActionPlanningError] = []
+    to_value = to
+    for k, choice in enumerate(found[:candidates]):
+        link = inst.concept.grasps[choice.option.grasp].link
+        held = collision_scene(
+            robot, inst, base=base_m, touching=[(f, link) for f in FINGERS], allowance=allowance
         )
-    except ActionPlanningError as exc:
-        goal = f" to {joint} = {to:g}" if joint is not None and to is not None else ""
+        path, values, to_value = _action_path(inst, action, choice.ik.grasp_pose, to, steps)
+        times: list[tuple[str, float]] = []
+        try:
+            parts, standoff = _phases(
+                robot,
+                inst,
+                choice,
+                full,
+                held,
+                base_m,
+                q0,
+                path,
+                values,
+                joint,
+                seed,
+                time_limit,
+                times,
+            )
+        except ActionPlanningError as exc:
+            failures.append(exc)
+            continue
+        clock += times
+        lost = [(c.option.grasp, _why(e, i)) for i, (c, e) in enumerate(zip(found, failures))]
+        others = [(c.option.grasp, f"not tried (margin {c.margin:.3f})") for c in found[k + 1 :]]
+        choice = replace(choice, rejected=tuple(rejected + lost + others))
+        break
+    else:
+        goal = f" to {joint} = {to_value:g}" if joint is not None and to_value is not None else ""
+        worst = max(failures, key=_progress)
+        tried = f" ({len(failures)} grasp postures tried; the furthest)" * (len(failures) > 1)
         raise ActionPlanningError(
-            f"{inst.concept.name}: cannot {action}{goal} from this base placement: {exc}",
-            phase=exc.phase,
-            reason=exc.reason,
-            value=exc.value,
+            f"{inst.concept.name}: cannot {action}{goal} from this base placement{tried}: {worst}",
+            phase=worst.phase,
+            reason=worst.reason,
+            value=worst.value,
         ) from None
     timed = [_time(robot, q, v, scene, acceleration) for q, v, scene in parts]
     clock.append(("timing", time.perf_counter()))
-    plan = _assemble(robot, choice, to, joint, timed, base_m)
+    plan = _assemble(robot, choice, to_value, joint, timed, base_m)
     stages = tuple((name, b - a) for (_, a), (name, b) in zip(clock[:-1], clock[1:]))
-    return replace(plan, seconds=stages)
+    return replace(plan, seconds=stages, standoff=standoff)
+
+
+def _why(exc: ActionPlanningError, k: int) -> str:
+    return f"posture {k + 1}: {exc.phase}: {exc.reason}"
+
+
+def _progress(exc: ActionPlanningError) -> tuple[int, float]:
+    """How far a failed candidate got: the phase (in the order they are planned), then the
+    object's joint value reached."""
+    order = ("moving in", "following the action", "backing out", "approach")
+    rank = order.index(exc.phase) if exc.phase in order else -1
+    return rank, abs(exc.value) if exc.value is not None else 0.0
 
 
 def _phases(
@@ -176,38 +215,86 @@ def _phases(
     seed: int,
     time_limit: float,
     clock: list[tuple[str, float]],
-) -> list[tuple[FloatArray, FloatArray, _Object]]:
+) -> tuple[list[tuple[FloatArray, FloatArray, _Object]], float]:
     """The four phases' joint waypoints, object joint values and collision scenes, checked
-    (``clock`` gets the time the approach and the tracked phases were done)."""
+    (``clock`` gets the times the tracked phases and the approach were done), and the standoff.
+
+    The cheap, decisive part first: from the grasp posture, the insert tracked backwards to the
+    pre-grasp pose, then the interaction and the retreat; only then the approach (OMPL) from
+    ``q0`` to the pre-grasp configuration the insert started from."""
     to_base = np.linalg.inv(base)
-    grasp = choice.ik.grasp_pose
+    start_value = float(inst.joints[joint]) if joint is not None else 0.0
+    moving = _Object(held, inst, joint)
+    grasp = to_base @ choice.ik.grasp_pose
+    off, q_grasp = _standoff(robot, grasp, choice.ik.q, moving, start_value)
+    path = path @ _back(off)
+    grasp = to_base @ path[0]
     pre = grasp @ _back(APPROACH)
-    q_pre = _reach(robot, to_base @ pre, choice.ik.q, full, "the pre-grasp pose", seed)
+    backwards, _ = _track(robot, _line(grasp, pre, 8), q_grasp, "moving in")
+    insert = backwards[::-1].copy()
+    _check(moving, insert, np.full(len(insert), start_value), "moving in")
+    interact, held_values = _track(
+        robot, to_base @ path, q_grasp, "following the action", values, joint
+    )
+    _check(moving, interact, held_values, "following the action")
     try:
-        approach = plan_path(full, q0, q_pre, time_limit=time_limit, seed=seed)
+        retreat = _retreat(robot, to_base @ path[-1], interact[-1])
+    except ActionPlanningError as exc:  # the object was moved all the way: say how far
+        exc.value = float(held_values[-1]) if joint is not None else None
+        raise
+    _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
+    clock.append(("tracking", time.perf_counter()))
+    try:
+        approach = plan_path(full, q0, insert[0], time_limit=time_limit, seed=seed)
     except PlanningError as exc:
         raise ActionPlanningError(
             f"the approach: {exc}", phase="approach", reason="no path"
         ) from None
     clock.append(("approach", time.perf_counter()))
-    start_value = float(inst.joints[joint]) if joint is not None else 0.0
-    moving = _Object(held, inst, joint)
-    insert, _ = _track(robot, _line(to_base @ pre, to_base @ grasp, 8), q_pre, "moving in")
-    _check(moving, insert, np.full(len(insert), start_value), "moving in")
-    interact, held_values = _track(
-        robot, to_base @ path, insert[-1], "following the action", values, joint
-    )
-    _check(moving, interact, held_values, "following the action")
-    retreat_poses = _line(to_base @ path[-1], to_base @ path[-1] @ _back(APPROACH), 8)
-    retreat, _ = _track(robot, retreat_poses, interact[-1], "backing out")
-    _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
-    clock.append(("tracking", time.perf_counter()))
     return [
         (approach, np.full(len(approach), start_value), _Object(full, inst, None)),
         (insert, np.full(len(insert), start_value), moving),
         (interact, held_values, moving),
         (retreat, np.full(len(retreat), held_values[-1]), moving),
-    ]
+    ], off
+
+
+def _retreat(robot: Robot, end: FloatArray, q: FloatArray) -> FloatArray:
+    """The hand backed out along its approach axis from the pose ``end`` where the action left
+    it: ``APPROACH`` when the arm can, else the longest of ``RETREATS`` it can track (at least
+    ``MIN_RETREAT``, which takes the finger pads and a handle's depth off the part)."""
+    failure: ActionPlanningError | None = None
+    for length in RETREATS:
+        try:
+            qs, _ = _track(robot, _line(end, end @ _back(length), 8), q, "backing out")
+        except ActionPlanningError as exc:
+            failure = failure or exc
+            continue
+        return qs
+    assert failure is not None
+    raise failure
+
+
+def _standoff(
+    robot: Robot, grasp: FloatArray, q: FloatArray, moving: _Object, value: float
+) -> tuple[float, FloatArray]:
+    """How far short of the grasp pose (along its approach axis) the hand stops, and its joints
+    there: the first of ``STANDOFFS`` at which the fingers press into nothing deeper than the
+    allowance. The grasp frame's origin is the middle of the finger pads, which reach
+    ``FINGERTIP_REACH`` beyond it: a hand pushing an edge or pinching a lip touches with the pads'
+    ends, and stopping at most that much short keeps the pads on the part (0 when nothing is
+    free: the insert's check then names the contact)."""
+    for off in STANDOFFS:
+        if off == 0.0:
+            q_off = np.asarray(q)
+        else:
+            result = solve_ik(robot, grasp @ _back(off), q0=q, options=IKOptions(max_restarts=0))
+            if not result.success:
+                continue
+            q_off = np.asarray(result.q)
+        if not moving.collides(q_off, value):
+            return off, q_off
+    return 0.0, np.asarray(q)
 
 
 @dataclass(frozen=True)
@@ -282,26 +369,6 @@ def _line(a: FloatArray, b: FloatArray, n: int) -> FloatArray:
     return out
 
 
-def _reach(
-    robot: Robot, target: FloatArray, q0: FloatArray, scene: CollisionScene, what: str, seed: int
-) -> FloatArray:
-    """A collision-free IK solution near ``q0``, else from seeded random starts."""
-    rng = np.random.default_rng(seed)
-    reason = "out of reach"
-    for attempt in range(REACH_ATTEMPTS):
-        start = q0 if attempt == 0 else robot.random_q(rng)
-        result = solve_ik(robot, target, q0=start, seed=seed + attempt)
-        if not result.success:
-            reason = f"out of reach ({result.error_pos * 1e3:.1f} mm off)"
-            continue
-        if not scene.collides(result.q):
-            return np.asarray(result.q)
-        hit = scene.contacts(result.q)[0]
-        reason = f"in collision ({hit.first} touches {hit.second})"
-    kind = "collision" if reason.startswith("in collision") else "unreachable"
-    raise ActionPlanningError(f"{what} is {reason}", phase="pre-grasp", reason=kind)
-
-
 def _track(
     robot: Robot,
     poses: FloatArray,
@@ -347,10 +414,34 @@ def _track(
                 reason="jump",
                 value=out_values[-1] if joint else None,
             )
-        out.append(np.asarray(result.q))
+        out.append(_relax(robot, pose, np.asarray(result.q), out[-1], opts))
         out_values.append(float(value))
         last = pose
     return np.stack(out), np.asarray(out_values)
+
+
+def _relax(
+    robot: Robot, pose: FloatArray, q: FloatArray, previous: FloatArray, opts: IKOptions
+) -> FloatArray:
+    """``q`` moved along the arm's self-motion (the null space of its Jacobian, which leaves the
+    hand where it is to first order) toward the middle of the joint ranges, then put back on
+    ``pose`` by IK: redundancy resolution that keeps a margin to the joint limits, so that a
+    tracked path does not run a joint into its limit while another posture of the same hand pose
+    had room. The gradient step is ``RELAX_STEP`` at most on any joint; the relaxed
+    configuration is kept only when IK reaches the pose from it within ``MAX_JOINT_STEP`` of
+    ``previous``."""
+    middle, half = (robot.upper + robot.lower) / 2, (robot.upper - robot.lower) / 2
+    jac = robot.jacobian(q)
+    null = np.eye(robot.nq) - np.linalg.pinv(jac) @ jac
+    step = null @ ((middle - q) / half)
+    largest = float(np.max(np.abs(step)))
+    if largest < 1e-9:
+        return q
+    nudged = np.clip(q + step * min(1.0, RELAX_STEP / largest), robot.lower, robot.upper)
+    result = solve_ik(robot, pose, q0=nudged, options=opts)
+    if result.success and float(np.max(np.abs(result.q - previous))) <= MAX_JOINT_STEP:
+        return np.asarray(result.q)
+    return q
 
 
 def _mid_rotation(a: FloatArray, b: FloatArray) -> FloatArray:

@@ -5,19 +5,26 @@ instance is moved so that the middle of the action's grasps (at the middle of th
 parameters) sits ``REACH`` ahead of the base at ``HEIGHT``: where a Panda has the most room to
 move. Where the robot's home configuration would touch the object there, the object steps back
 until it does not. ``jitter`` moves the robot base (x, y, yaw) for seeded variations of a scene.
+
+A fixed base cannot do every action from the default spot: a drop-down door's handle comes down
+and toward the robot, a side-hinged door swings across it. ``plan_placed`` tries a few base
+poses, the given one first, then the one moved along with the middle of the action's hand path,
+then seeded shifts back and to the sides facing the grasps, and keeps the first from which the
+whole action plans (``Placed.tried`` says how many it took).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from grace_dsl.robot.collision import collision_scene
 from grace_dsl.robot.model import Robot
-from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.errors import GraceError, ParameterError
 
 FloatArray = np.ndarray
 FACING_ROBOT = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])
@@ -25,6 +32,23 @@ REACH = 0.60  # metres ahead of the base where the action's grasps are centred
 HEIGHT = 0.50  # metres above the base
 STEP_BACK = 0.05  # metres the object moves away while the home configuration touches it
 MAX_STEPS_BACK = 8
+# Base shifts (metres, in the first base's frame) tried after it: back from the object (an
+# opening door or drawer comes toward the robot), to either side (a door swings sideways), back
+# and to the side (a drop-down door), closer (a lid or a roller door goes up and away).
+SHIFTS = (
+    (-0.1, 0.0),
+    (-0.1, 0.1),
+    (-0.1, -0.1),
+    (-0.2, 0.0),
+    (0.0, 0.15),
+    (0.0, -0.15),
+    (-0.15, 0.2),
+    (-0.15, -0.2),
+    (0.1, 0.0),
+    (0.2, 0.0),
+)
+PLACEMENTS = 2 + len(SHIFTS)  # tried by plan_placed: the given base, the centred one, the shifts
+JITTER = 0.02  # metres of seeded jitter on each shift
 
 
 def default_instance(
@@ -78,3 +102,96 @@ def jitter(seed: int, shift: float = 0.05, turn: float = 0.15) -> FloatArray:
     rng = np.random.default_rng(seed)
     x, y = rng.uniform(-shift, shift, 2)
     return base_pose(float(x), float(y), float(rng.uniform(-turn, turn)))
+
+
+@dataclass(frozen=True)
+class Placed:
+    """A plan found by :func:`plan_placed`, the base pose it was planned from and how many base
+    poses were tried (1: the first one worked)."""
+
+    plan: Any  # grace_dsl.robot.act.ActionPlan
+    base: FloatArray
+    tried: int
+
+
+def placements(
+    inst: Any,
+    action: str,
+    base: FloatArray | None = None,
+    *,
+    seed: int = 0,
+    count: int = PLACEMENTS,
+) -> list[FloatArray]:
+    """``count`` base poses to try for ``action`` on ``inst``: ``base`` (default the origin),
+    then ``SHIFTS`` in that base's own frame (back from the object, to either side, closer) with a
+    seeded jitter of ``JITTER`` metres, each turned to face the action's grasps. Deterministic
+    for a seed."""
+    first = np.eye(4) if base is None else np.asarray(base, float)
+    target = np.linalg.inv(first) @ np.append(_grasp_centre(inst, action), 1.0)
+    rng = np.random.default_rng(seed)
+    out = [first]
+    for dx, dy in SHIFTS[: max(0, count - 1)]:
+        x, y = np.array([dx, dy]) + rng.uniform(-JITTER, JITTER, 2)
+        yaw = math.atan2(target[1] - y, target[0] - x)
+        out.append(first @ base_pose(float(x), float(y), yaw))
+    return out
+
+
+def _centred(inst: Any, action: str, to: float | None, base: FloatArray) -> FloatArray | None:
+    """``base`` moved on the floor by as much as the middle of the action's hand path (from the
+    grasps' centre, at the middle of their free parameters) lies off the grasps' centre: the
+    robot stands where the motion, not only its start, is in front of it. None for an action
+    that moves no joint or whose path cannot be computed."""
+    spec = inst.concept.actions[action]
+    if spec.joint is None or not spec.using:
+        return None
+    lo, hi = inst.joint_limits()[spec.joint]
+    target = (hi if spec.opening else lo) if to is None else float(to)
+    grasp = spec.using[0]
+    middle = {f: (a + b) / 2 for f, (a, b) in inst.grasp_range(grasp).items()}
+    try:
+        path = inst.follow(action, grasp=inst.grasp(grasp, free=middle), to=target, steps=9)
+    except GraceError:
+        return None
+    shift = path[:, :3, 3].mean(axis=0) - path[0, :3, 3]
+    moved = np.asarray(base, float).copy()
+    moved[:2, 3] += shift[:2]
+    return moved
+
+
+def plan_placed(
+    robot: Robot,
+    inst: Any,
+    action: str,
+    to: float | None = None,
+    *,
+    base: FloatArray | None = None,
+    seed: int = 0,
+    count: int = PLACEMENTS,
+    **options: Any,
+) -> Placed:
+    """``plan_action`` from the first of :func:`placements` that can do the action: a person
+    opening a door steps to where they can, so does the robot's base here. Raises the first
+    placement's error (naming how many were tried) when none can."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+
+    first: GraceError | None = None
+    poses = placements(inst, action, base, seed=seed, count=count - 1)
+    centred = _centred(inst, action, to, poses[0]) if count > 1 else None
+    poses = poses[:1] + ([centred] if centred is not None else []) + poses[1:]
+    for k, pose in enumerate(poses):
+        try:
+            plan = plan_action(robot, inst, action, to, base=pose, seed=seed, **options)
+        except GraceError as exc:
+            first = first or exc
+            continue
+        return Placed(plan, pose, k + 1)
+    assert first is not None
+    if isinstance(first, ActionPlanningError):
+        raise ActionPlanningError(
+            f"{first} ({len(poses)} base placements tried)",
+            phase=first.phase,
+            reason=first.reason,
+            value=first.value,
+        ) from None
+    raise first

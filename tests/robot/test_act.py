@@ -6,9 +6,16 @@ import numpy as np
 import pytest
 
 import grace_dsl as eac
-from grace_dsl.robot.act import FINGER_ALLOWANCE, FINGERS, ActionPlanningError, plan_action
+from grace_dsl.robot.act import (
+    FINGER_ALLOWANCE,
+    FINGERS,
+    FINGERTIP_REACH,
+    ActionPlanningError,
+    plan_action,
+)
 from grace_dsl.robot.collision import collision_scene
 from grace_dsl.robot.model import Robot
+from grace_dsl.robot.placement import default_instance
 from grace_dsl.robot.plan import DEFAULT_ACCELERATION
 from tests.robot.test_grasp_ik import facing
 from tests.robot.test_model import urdf_chain_fk
@@ -62,29 +69,61 @@ def test_the_whole_trajectory_is_free_and_within_limits(panda: Robot, door_plan)
     vel, acc = differenced(plan.q, plan.t)
     assert np.all(np.abs(vel) <= panda.velocity_limit * (1 + 1e-9))
     assert np.all(np.abs(acc) <= DEFAULT_ACCELERATION * (1 + 1e-9))
-    # Re-checked densely with fresh scenes: the arm (fingers aside) touches nothing at all, the
-    # door posed at its joint value; the fingers press into the held leaf by no more than the
-    # allowance, and touch nothing else.
-    arm = collision_scene(panda, door, ignore=FINGERS)
-    link = door.concept.grasps[plan.choice.option.grasp].link
+    recheck(panda, door, plan)
+
+
+def recheck(panda: Robot, inst, plan) -> None:  # type: ignore[no-untyped-def]
+    """Re-checked densely with fresh scenes: the arm (fingers aside) touches nothing at all, the
+    object posed at its joint value; the fingers press into the held link by no more than the
+    allowance, and touch nothing else; on the way in (the approach), nothing touches at all."""
+    arm = collision_scene(panda, inst, ignore=FINGERS)
+    link = inst.concept.grasps[plan.choice.option.grasp].link
     fingers = collision_scene(
-        panda, door, touching=[(f, link) for f in FINGERS], allowance=FINGER_ALLOWANCE
+        panda, inst, touching=[(f, link) for f in FINGERS], allowance=FINGER_ALLOWANCE
     )
-    strict = collision_scene(panda, door)
+    strict = collision_scene(panda, inst)
     approach_end = plan.phases[0][2]
     for k in range(len(plan.q) - 1):
         a, b = plan.q[k], plan.q[k + 1]
         va, vb = plan.joint_values[k], plan.joint_values[k + 1]
         n = max(1, int(np.ceil(max(np.max(np.abs(b - a)), abs(vb - va)) / RECHECK)))
         for w in np.linspace(0.0, 1.0, n + 1):
-            q, opened = a + w * (b - a), door.with_joints(hinge=va + w * (vb - va))
+            q, posed = a + w * (b - a), inst.with_joints({plan.joint: va + w * (vb - va)})
             for scene in (arm, fingers, strict):
-                scene.place(opened)
+                scene.place(posed)
             assert not arm.collides(q), (k, w)
-            if k + 1 < approach_end:  # on the way in, nothing may touch the door at all
+            if k + 1 < approach_end:
                 assert not strict.collides(q), (k, w)
             else:
                 assert not fingers.collides(q), (k, w)
+
+
+@pytest.fixture(scope="module")
+def lid_plan(panda: Robot, lib):  # type: ignore[no-untyped-def]
+    """A lid lifted by its front edge: the lower finger goes under a 15 mm overhang, which the
+    finger pads reach past unless the hand stops short (the standoff)."""
+    lid = default_instance(panda, lib["LidBox"], "open")
+    return lid, plan_action(panda, lid, "open", to=0.6)
+
+
+@pytest.mark.slow
+def test_a_lid_is_lifted_to_its_target_on_its_arc(panda: Robot, lid_plan) -> None:  # type: ignore[no-untyped-def]
+    lid, plan = lid_plan
+    assert 0.0 <= plan.standoff <= FINGERTIP_REACH
+    start, stop = plan.span("interact")
+    values = plan.joint_values[(plan.t >= start) & (plan.t <= stop)]
+    assert values[-1] == pytest.approx(0.6) and np.all(np.diff(values) >= 0)
+    # The hand (independent FK) follows the lid's analytic path, short by the standoff.
+    path = lid.follow("open", grasp=plan.choice.ik.grasp_pose, to=0.6, steps=200)
+    back = np.eye(4)
+    back[2, 3] = -plan.standoff
+    path = path @ back
+    hand = np.array([urdf_chain_fk(q)[:3, 3] for q in plan.phase("interact")])
+    gaps = np.min(np.linalg.norm(hand[:, None] - path[None, :, :3, 3], axis=2), axis=1)
+    assert gaps.max() <= 2e-3
+    assert np.linalg.norm(hand[-1] - path[-1][:3, 3]) <= 1e-3
+    assert np.all(plan.q >= panda.lower) and np.all(plan.q <= panda.upper)
+    recheck(panda, lid, plan)
 
 
 @pytest.mark.slow

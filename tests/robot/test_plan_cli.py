@@ -141,3 +141,15 @@ def test_the_slider_moves_the_arm_in_chromium(planned, fragment, tmp_path) -> No
     assert last is not None
     assert f'data-frame="{last.group(1)}"' in body.group(0)
     assert 'data-changed="true"' in body.group(0)
+
+
+@pytest.mark.slow
+def test_the_default_target_is_as_far_as_the_placement_allows(capsys) -> None:  # type: ignore[no-untyped-def]
+    """Without --to: 90% of the range, or (out of reach) just short of where the arm stopped."""
+    from grace_dsl.cli.plan_cmd import DEFAULT_FRACTION
+
+    assert main(["plan", "LidBox", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    hi = np.radians(110)  # LidBox's hinge range is [0, 110deg]
+    assert 0.1 * hi < data["to"] <= DEFAULT_FRACTION * hi + 1e-9
+    assert data["trajectory"]["object_joint"][-1] == pytest.approx(data["to"], abs=1e-6)
