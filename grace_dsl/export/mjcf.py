@@ -5,11 +5,18 @@ the model at q = 0 (where the bodies are written); the instance's joint values a
 ``instance``: ``mujoco.mj_resetDataKeyframe(model, data, 0)`` starts the simulation there.
 Boxes, full cylinders, spheres and capsules are native geoms; the rest are STL meshes (inline
 vertex/face data when no path is given, so the text alone is a complete model).
+
+Each link has two sets of geoms. The visual ones (group 2, ``contype = conaffinity = 0``) are
+the pieces whole, for pictures and cameras; the collision ones (group 3, invisible by default,
+named ``<piece>__collision``) are convex, because MuJoCo collides a mesh as its convex hull
+(see ``shapes.link_solids``). A model built with ``ExportOptions(collision=False)`` has only
+visual geoms, and those collide. Joints carry damping, friction loss and armature.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -33,6 +40,8 @@ if TYPE_CHECKING:
 
 MJCF_NATIVE = {"box", "cylinder", "sphere", "capsule"}
 JOINT_TYPES = {"revolute": "hinge", "continuous": "hinge", "prismatic": "slide"}
+VISUAL = {"group": "2", "contype": "0", "conaffinity": "0"}
+COLLISION = {"group": "3", "contype": "1", "conaffinity": "1", "rgba": "0.5 0.5 0.5 0.4"}
 
 
 def export_mjcf(
@@ -82,13 +91,23 @@ class _Writer:
         el.append(_inertial(link.inertial))
         if joint is not None and joint.kind != "fixed":
             el.append(_joint(joint))
+        colliding = not link.collision  # without collision geoms the visual ones collide
         for geom in link.geoms:
-            el.append(self._geom(geom))
+            el.append(self._role(self._geom(geom), VISUAL if not colliding else COLLISION))
+        for geom in link.collision:
+            named = replace(geom, name=f"{geom.name}.collision")
+            el.append(self._role(self._geom(named), COLLISION))
         for j in self.model.children(link.name):
             child = next(x for x in self.model.links if x.name == j.child)
             offset = np.eye(4)
             offset[:3, 3] = j.origin
             el.append(self._body(child, j, offset))
+        return el
+
+    @staticmethod
+    def _role(el: ET.Element, attrs: dict[str, str]) -> ET.Element:
+        for k, v in attrs.items():
+            el.set(k, v)
         return el
 
     def _geom(self, geom: Geom) -> ET.Element:
@@ -131,6 +150,8 @@ def _joint(j: Joint) -> ET.Element:
     el = ET.Element("joint", name=j.name, type=JOINT_TYPES[j.kind], axis=vec(j.axis))
     el.set("damping", num(j.damping))
     el.set("frictionloss", num(j.friction))
+    if j.armature > 0:
+        el.set("armature", num(j.armature))
     if j.lo is not None and j.hi is not None:
         el.set("limited", "true")
         el.set("range", vec((j.lo, j.hi)))

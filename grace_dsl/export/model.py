@@ -19,7 +19,8 @@ import numpy as np
 import trimesh
 
 from grace_dsl.export.common import xml_name
-from grace_dsl.export.shapes import Geom, link_geoms
+from grace_dsl.export.shapes import Geom, link_solids
+from grace_dsl.geometry.pieces import SEGMENTS
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.masks import has_masks, present
 
@@ -32,6 +33,7 @@ DENSITY = 600.0  # kg/m^3, wood: a plausible default for doors, drawers and hand
 WALL = 0.018  # m, the usual board thickness: large bodies are boxes of boards, not solid blocks
 DAMPING = 0.5  # N m s/rad (or N s/m): enough to keep a free-swinging door from ringing
 FRICTION = 0.1  # N m (or N): a little static friction, as real hinges and slides have
+ARMATURE = 0.01  # kg m^2 (or kg): rotor-like inertia on each joint; keeps light parts stable
 NOMINAL_MASS = 0.01  # kg, for links without geometry: simulators reject massless moving bodies
 KINDS = {"revolute", "prismatic", "continuous", "fixed"}
 
@@ -53,8 +55,9 @@ class Link:
     source: str  # the concept's qualified link name
     origin: np.ndarray  # (3,) the frame's origin in the concept frame at q = 0 (its joint origin)
     offset: np.ndarray  # (4, 4) exported frame = runtime link pose @ offset
-    geoms: tuple[Geom, ...]
+    geoms: tuple[Geom, ...]  # visual: the pieces whole (a board box as its boards)
     inertial: Inertial
+    collision: tuple[Geom, ...] = ()  # convex pieces, what a simulator collides
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,7 @@ class Joint:
     value: float  # the instance's joint value: the exported model's initial state
     damping: float
     friction: float
+    armature: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -94,14 +98,19 @@ class ExportModel:
 @dataclass(frozen=True)
 class ExportOptions:
     """How the exported model is made: material (``density`` kg/m^3, ``wall`` m: each solid
-    weighs the lesser of its full volume and a shell of this thickness), joint damping and
-    friction, and mesh segments per full circle."""
+    weighs the lesser of its full volume and a shell of this thickness), joint damping,
+    friction and armature, mesh segments per full circle, and the collision geometry: convex
+    pieces (``segments`` per full turn of a ring, tube or torus), or none (``collision=False``:
+    a model to look at)."""
 
     density: float = DENSITY
     wall: float = WALL
     damping: float = DAMPING
     friction: float = FRICTION
+    armature: float = ARMATURE
     resolution: int = 32  # mesh segments per full circle
+    segments: int = SEGMENTS
+    collision: bool = True
 
 
 def sanitize(name: str, taken: set[str]) -> str:
@@ -189,8 +198,11 @@ def _link(
     closed."""
     offset = np.linalg.solve(rest, _translation(origin))
     frame = _translation(origin)  # the exported frame in the concept frame at q = 0
-    geoms = link_geoms(inst, src, frame, opts.resolution, warnings)
-    return Link(name, src, origin.copy(), offset, geoms, _inertial(geoms, opts.density, opts.wall))
+    geoms, solid = link_solids(
+        inst, src, frame, opts.resolution, warnings, opts.segments, opts.collision
+    )
+    inertial = _inertial(geoms, opts.density, opts.wall)
+    return Link(name, src, origin.copy(), offset, geoms, inertial, solid)
 
 
 def _joint(
@@ -231,6 +243,7 @@ def _joint(
         value,
         opts.damping if kind != "fixed" else 0.0,
         opts.friction if kind != "fixed" else 0.0,
+        opts.armature if kind != "fixed" else 0.0,
     )
 
 
