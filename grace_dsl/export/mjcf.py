@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 
 MJCF_NATIVE = {"box", "cylinder", "sphere", "capsule"}
 JOINT_TYPES = {"revolute": "hinge", "continuous": "hinge", "prismatic": "slide"}
+OVERLAP = 0.0001  # m: a deeper overlap at q = 0 is drawn on purpose (``overlapping_bodies``)
 VISUAL = {"group": "2", "contype": "0", "conaffinity": "0"}
 COLLISION = {"group": "3", "contype": "1", "conaffinity": "1", "rgba": "0.5 0.5 0.5 0.4"}
 
@@ -52,10 +53,13 @@ def export_mjcf(
     return write_mjcf(build_model(inst, options), path)
 
 
-def write_mjcf(model: ExportModel, path: str | Path | None = None) -> str:
-    """The MJCF text of an already built model (written to ``path`` when given)."""
+def write_mjcf(
+    model: ExportModel, path: str | Path | None = None, exclude_overlaps: bool = True
+) -> str:
+    """The MJCF text of an already built model (written to ``path`` when given); with
+    ``exclude_overlaps``, bodies whose collision geoms overlap at q = 0 do not collide."""
     target = output_file(path, ".xml") if path is not None else None
-    writer = _Writer(model, target)
+    writer = _Writer(model, target, exclude_overlaps)
     text = to_text(writer.tree(), f"{model.name}, exported by grace_dsl")
     if target is not None:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -64,8 +68,8 @@ def write_mjcf(model: ExportModel, path: str | Path | None = None) -> str:
 
 
 class _Writer:
-    def __init__(self, model: ExportModel, target: Path | None):
-        self.model = model
+    def __init__(self, model: ExportModel, target: Path | None, exclude: bool = True):
+        self.model, self.exclude = model, exclude
         self.relative = mesh_dir_name(target) if target is not None else ""
         self.mesh_dir = target.parent / self.relative if target is not None else None
         self.assets = ET.Element("asset")
@@ -79,6 +83,11 @@ class _Writer:
             root.append(self.assets)
         root.append(world)
         moving = [j for j in self.model.joints if j.kind != "fixed"]
+        pairs = overlapping_bodies(write_mjcf(self.model, None, False)) if self.exclude else []
+        if pairs:
+            contact = ET.SubElement(root, "contact")
+            for a, b in pairs:
+                ET.SubElement(contact, "exclude", body1=a, body2=b)
         if moving:
             frames = ET.SubElement(root, "keyframe")
             ET.SubElement(frames, "key", name="instance", qpos=vec(j.value for j in moving))
@@ -140,6 +149,28 @@ class _Writer:
         return name
 
 
+def overlapping_bodies(text: str) -> list[tuple[str, str]]:
+    """Pairs of bodies of an MJCF model whose geoms overlap by more than ``OVERLAP`` in the
+    state it is written in (q = 0); empty when MuJoCo is not installed.
+
+    Some concepts draw a part inside a solid stand-in for its parent (a drawer box in a solid
+    carcass block, a trolley's tubes in a suitcase shell): the part is meant to slide there,
+    so the pair is excluded from collision instead of being pushed apart at the first step."""
+    try:
+        import mujoco
+    except ImportError:
+        return []
+    model = mujoco.MjModel.from_xml_string(text)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    pairs: set[tuple[str, str]] = set()
+    for c in data.contact[: data.ncon]:
+        if -c.dist > OVERLAP:
+            b1, b2 = sorted((int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])))
+            pairs.add((model.body(b1).name, model.body(b2).name))
+    return sorted(pairs)
+
+
 def _inertial(i: Inertial) -> ET.Element:
     m = i.inertia
     full = (m[0, 0], m[1, 1], m[2, 2], m[0, 1], m[0, 2], m[1, 2])
@@ -150,6 +181,9 @@ def _joint(j: Joint) -> ET.Element:
     el = ET.Element("joint", name=j.name, type=JOINT_TYPES[j.kind], axis=vec(j.axis))
     el.set("damping", num(j.damping))
     el.set("frictionloss", num(j.friction))
+    # a stiff friction loss: MuJoCo's default softness lets a held part creep ~5 mm/s
+    el.set("solreffriction", "0.004 1")
+    el.set("solimpfriction", "0.99 0.999 0.001")
     if j.armature > 0:
         el.set("armature", num(j.armature))
     if j.lo is not None and j.hi is not None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -34,6 +34,8 @@ WALL = 0.018  # m, the usual board thickness: large bodies are boxes of boards, 
 DAMPING = 0.5  # N m s/rad (or N s/m): enough to keep a free-swinging door from ringing
 FRICTION = 0.1  # N m (or N): a little static friction, as real hinges and slides have
 ARMATURE = 0.01  # kg m^2 (or kg): rotor-like inertia on each joint; keeps light parts stable
+HOLD = 3.0  # friction loss at least this times the closed part's pull by gravity (see _held)
+GRAVITY = np.array([0.0, 0.0, -9.81])  # world, m/s^2 (MuJoCo's default)
 NOMINAL_MASS = 0.01  # kg, for links without geometry: simulators reject massless moving bodies
 KINDS = {"revolute", "prismatic", "continuous", "fixed"}
 
@@ -155,6 +157,8 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
     out_joints = tuple(
         _joint(j, names, link_origin, axes, lo, hi, inst.q, opts, taken) for j in order
     )
+    gravity = inst.pose[:3, :3].T @ GRAVITY  # in the concept frame
+    out_joints = tuple(_held(j, links, out_joints, gravity) for j in out_joints)
     for w in warnings:
         log.warning("%s: %s", concept.name, w)
     return ExportModel(concept.name, inst.pose.copy(), links, out_joints, tuple(warnings))
@@ -245,6 +249,44 @@ def _joint(
         opts.friction if kind != "fixed" else 0.0,
         opts.armature if kind != "fixed" else 0.0,
     )
+
+
+def _held(
+    joint: Joint, links: tuple[Link, ...], joints: tuple[Joint, ...], gravity: np.ndarray
+) -> Joint:
+    """The joint with enough friction loss to hold its closed part (q = 0) where it is put.
+
+    Real doors, flaps, levers and switches stay closed by a latch, a spring or a detent, which
+    the concepts do not describe. Where gravity at q = 0 pulls the part (and what hangs on it)
+    towards opening (or, for a joint whose range holds 0 inside it, either way), the friction
+    loss is raised to ``HOLD`` times that pull, so a closed oven door stays closed; a pull
+    into the closed limit needs nothing."""
+    if joint.kind == "fixed":
+        return joint
+    origin = {link.name: link.origin for link in links}  # exported frames at q = 0
+    below = _subtree(joint.child, joints)
+    pull = 0.0
+    for link in links:
+        if link.name in below:
+            force = link.inertial.mass * gravity
+            com = origin[link.name] + link.inertial.com
+            if joint.kind == "prismatic":
+                pull += float(force @ joint.axis)
+            else:
+                pull += float(np.cross(com - origin[joint.child], force) @ joint.axis)
+    lo, hi = joint.lo, joint.hi
+    opening = 0.0 if lo is None or hi is None or lo < 0 < hi else (1.0 if hi > 0 else -1.0)
+    if opening != 0.0 and pull * opening <= 0:
+        return joint  # pulled into its closed limit: the limit (or a contact) holds it
+    return replace(joint, friction=max(joint.friction, HOLD * abs(pull)))
+
+
+def _subtree(link: str, joints: tuple[Joint, ...]) -> set[str]:
+    out = {link}
+    for j in joints:
+        if j.parent == link:
+            out |= _subtree(j.child, joints)
+    return out
 
 
 def _inertial(geoms: tuple[Geom, ...], density: float, wall: float) -> Inertial:

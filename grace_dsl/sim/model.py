@@ -14,8 +14,8 @@ its initial state (the instance's joint values, the keyframe ``instance``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
