@@ -9,13 +9,13 @@ Each instance is exported (``grace_dsl.export.mjcf``: convex collision pieces, w
 meshes) and attached to one ``mujoco.MjSpec``. By default (``up="z"``) an instance is stood
 upright on the floor (``sim.model.zup_pose``: concept +y -> world +z), the first at the origin
 and the next ones 1.5 m apart along world x; ``up="keep"`` uses each instance's own pose as
-its world pose. The first instance's names are the exported ones (its joint ``door.hinge`` is
-``door__hinge``); the i-th (i >= 1) carries the prefix ``obj<i>/``.
+its world pose. The i-th instance's names are the exported ones with the prefix ``obj<i>/``
+(the first instance's joint ``door.hinge`` is ``obj0/door__hinge``; ``scene.name(0, ...)``).
 
 Extension hook (the hand, the arm): ``scene.spec(extra=[hand_spec, ...])`` returns the
 composed ``MjSpec`` with each extra ``MjSpec`` attached to the world (its bodies, assets,
-actuators, mocap bodies and contact settings come along; pass one already prefixed, or give
-``(spec, prefix)`` pairs); ``scene.compile(extra=...)`` compiles it and sets every instance's
+actuators, mocap bodies and contact settings come along; a copy is attached, so one spec can
+serve several scenes; pass one already prefixed, or give ``(spec, prefix)`` pairs); ``scene.compile(extra=...)`` compiles it and sets every instance's
 joints (by name, so extra joints anywhere in qpos do no harm), and ``scene.mjcf(extra=...)``
 is its XML text.
 
@@ -139,7 +139,7 @@ class Scene:
         centre, radius = _bounds(placed)
         cam = camera or Camera()
         cam = cam.aimed(centre, FRAMING * radius / np.sin(np.radians(cam.fovy) / 2))
-        prefixes = tuple("" if i == 0 else f"obj{i}/" for i in range(len(placed)))
+        prefixes = tuple(f"obj{i}/" for i in range(len(placed)))
         return cls(tuple(placed), models, cam, prefixes)
 
     # -- the model -----------------------------------------------------------------------------
@@ -168,7 +168,7 @@ class Scene:
             root.attach(child, prefix=prefix, frame=root.worldbody.add_frame())
         for item in extra:
             spec, prefix = item if isinstance(item, tuple) else (item, "")
-            root.attach(spec, prefix=prefix, frame=root.worldbody.add_frame())
+            root.attach(spec.copy(), prefix=prefix, frame=root.worldbody.add_frame())
         return root
 
     def mjcf(self, extra: Sequence[mujoco.MjSpec | tuple[mujoco.MjSpec, str]] = ()) -> str:
@@ -192,6 +192,11 @@ class Scene:
                     data.qpos[adr] = j.value
         mujoco.mj_forward(model, data)
         return model, data
+
+    def name(self, index: int, exported: str) -> str:
+        """The scene's name of instance ``index``'s body, joint or geom named ``exported`` in
+        its own MJCF (``grace_dsl.export``)."""
+        return self.prefixes[index] + exported
 
     def link_of(self, model: mujoco.MjModel, body: int) -> tuple[int, str] | None:
         """(instance index, concept link) of MuJoCo body ``body``; None for the world, the
