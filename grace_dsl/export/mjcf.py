@@ -42,7 +42,14 @@ MJCF_NATIVE = {"box", "cylinder", "sphere", "capsule"}
 JOINT_TYPES = {"revolute": "hinge", "continuous": "hinge", "prismatic": "slide"}
 OVERLAP = 0.0001  # m: a deeper overlap at q = 0 is drawn on purpose (``overlapping_bodies``)
 VISUAL = {"group": "2", "contype": "0", "conaffinity": "0"}
-COLLISION = {"group": "3", "contype": "1", "conaffinity": "1", "rgba": "0.5 0.5 0.5 0.4"}
+COLLISION = {  # stiff contacts: a lid falling shut must not sink a millimetre into its box
+    "group": "3",
+    "contype": "1",
+    "conaffinity": "1",
+    "rgba": "0.5 0.5 0.5 0.4",
+    "solref": "0.004 1",
+    "solimp": "0.95 0.99 0.001",
+}
 
 
 def export_mjcf(
@@ -188,6 +195,8 @@ def _joint(j: Joint) -> ET.Element:
         el.set("armature", num(j.armature))
     if j.lo is not None and j.hi is not None:
         el.set("limited", "true")
+        el.set("solreflimit", "0.004 1")
+        el.set("solimplimit", "0.95 0.99 0.001")
         el.set("range", vec((j.lo, j.hi)))
     else:
         el.set("limited", "false")

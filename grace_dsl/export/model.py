@@ -35,6 +35,7 @@ DAMPING = 0.5  # N m s/rad (or N s/m): enough to keep a free-swinging door from 
 FRICTION = 0.1  # N m (or N): a little static friction, as real hinges and slides have
 ARMATURE = 0.01  # kg m^2 (or kg): rotor-like inertia on each joint; keeps light parts stable
 HOLD = 3.0  # friction loss at least this times the closed part's pull by gravity (see _held)
+SETTLE = 1.0  # s: damping at least inertia / SETTLE, so a heavy door slows like a soft hinge
 GRAVITY = np.array([0.0, 0.0, -9.81])  # world, m/s^2 (MuJoCo's default)
 NOMINAL_MASS = 0.01  # kg, for links without geometry: simulators reject massless moving bodies
 KINDS = {"revolute", "prismatic", "continuous", "fixed"}
@@ -254,7 +255,8 @@ def _joint(
 def _held(
     joint: Joint, links: tuple[Link, ...], joints: tuple[Joint, ...], gravity: np.ndarray
 ) -> Joint:
-    """The joint with enough friction loss to hold its closed part (q = 0) where it is put.
+    """The joint with enough friction loss to hold its closed part (q = 0) where it is put,
+    and damping that grows with what it moves (at least inertia / ``SETTLE``).
 
     Real doors, flaps, levers and switches stay closed by a latch, a spring or a detent, which
     the concepts do not describe. Where gravity at q = 0 pulls the part (and what hangs on it)
@@ -265,15 +267,21 @@ def _held(
         return joint
     origin = {link.name: link.origin for link in links}  # exported frames at q = 0
     below = _subtree(joint.child, joints)
-    pull = 0.0
+    pull, inertia = 0.0, 0.0
     for link in links:
         if link.name in below:
             force = link.inertial.mass * gravity
             com = origin[link.name] + link.inertial.com
             if joint.kind == "prismatic":
                 pull += float(force @ joint.axis)
+                inertia += link.inertial.mass
             else:
-                pull += float(np.cross(com - origin[joint.child], force) @ joint.axis)
+                arm = com - origin[joint.child]
+                pull += float(np.cross(arm, force) @ joint.axis)
+                off = arm - (arm @ joint.axis) * joint.axis
+                inertia += float(joint.axis @ link.inertial.inertia @ joint.axis)
+                inertia += link.inertial.mass * float(off @ off)
+    joint = replace(joint, damping=max(joint.damping, inertia / SETTLE))
     lo, hi = joint.lo, joint.hi
     opening = 0.0 if lo is None or hi is None or lo < 0 < hi else (1.0 if hi > 0 else -1.0)
     if opening != 0.0 and pull * opening <= 0:

@@ -89,13 +89,16 @@ def instance_model(
 @dataclass(frozen=True)
 class Settle:
     """How a model behaved left alone under gravity (``settle``): the deepest contact between
-    two of its own bodies (m, positive = overlap) and where; each joint's largest distance
-    outside its range and its drift from its start (m or rad)."""
+    two of its own bodies over the run (m, positive = overlap) and where, the deepest at the
+    start (a state drawn overlapping) and at the end (after impacts settle); each joint's
+    largest distance outside its range and its drift from its start (m or rad)."""
 
     penetration: float
     pair: tuple[str, str]  # the bodies of the deepest contact ("", "") when none
     outside: dict[str, float]
     drift: dict[str, float]
+    initial: float = 0.0
+    final: float = 0.0
 
 
 def settle(model: mujoco.MjModel, data: mujoco.MjData, seconds: float = 1.0) -> Settle:
@@ -111,6 +114,8 @@ def settle(model: mujoco.MjModel, data: mujoco.MjData, seconds: float = 1.0) -> 
     outside = np.zeros(len(joints))
     drift = np.zeros(len(joints))
     deepest, pair = 0.0, ("", "")
+    mujoco.mj_forward(model, data)
+    initial = _deepest(model, data)
     for _ in range(max(1, round(seconds / model.opt.timestep))):
         mujoco.mj_step(model, data)
         q = data.qpos[adr]
@@ -128,7 +133,19 @@ def settle(model: mujoco.MjModel, data: mujoco.MjData, seconds: float = 1.0) -> 
         pair,
         dict(zip(names, np.maximum(outside, 0.0).tolist())),
         dict(zip(names, drift.tolist())),
+        initial,
+        _deepest(model, data),
     )
+
+
+def _deepest(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """The deepest overlap (m) between two distinct bodies in ``data``'s contacts."""
+    depths = [
+        -c.dist
+        for c in data.contact[: data.ncon]
+        if model.geom_bodyid[c.geom1] != model.geom_bodyid[c.geom2]
+    ]
+    return max([0.0, *depths])
 
 
 def _body(model: mujoco.MjModel, b: int) -> str:

@@ -15,9 +15,9 @@ its world pose. The i-th instance's names are the exported ones with the prefix 
 Extension hook (the hand, the arm): ``scene.spec(extra=[hand_spec, ...])`` returns the
 composed ``MjSpec`` with each extra ``MjSpec`` attached to the world (its bodies, assets,
 actuators, mocap bodies and contact settings come along; a copy is attached, so one spec can
-serve several scenes; pass one already prefixed, or give ``(spec, prefix)`` pairs); ``scene.compile(extra=...)`` compiles it and sets every instance's
-joints (by name, so extra joints anywhere in qpos do no harm), and ``scene.mjcf(extra=...)``
-is its XML text.
+serve several scenes; pass one already prefixed, or give ``(spec, prefix)`` pairs);
+``scene.compile(extra=...)`` compiles it and sets every instance's joints (by name, so extra
+joints anywhere in qpos do no harm), and ``scene.mjcf(extra=...)`` is its XML text.
 
 Rendering is headless (``MUJOCO_GL=osmesa`` or ``egl``). Segmentation holds MuJoCo body ids
 (-1 for the sky, 0 the world: the floor); ``link_of`` maps a body id to (instance index,
