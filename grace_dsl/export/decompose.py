@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -41,9 +43,9 @@ def convex_decomposition(mesh: trimesh.Trimesh, seed: int = SEED) -> list[trimes
             log.warning("ignoring an unreadable cached decomposition %s", path)
     parts = _run(mesh, seed)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{np.random.default_rng().integers(1 << 30)}.tmp.npz")
-    arrays = {f"v{i}": p.vertices for i, p in enumerate(parts)}
-    arrays |= {f"f{i}": p.faces for i, p in enumerate(parts)}
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")  # one writer per process
+    arrays: dict[str, Any] = {f"v{i}": np.asarray(p.vertices) for i, p in enumerate(parts)}
+    arrays |= {f"f{i}": np.asarray(p.faces) for i, p in enumerate(parts)}
     np.savez(tmp, **arrays)
     tmp.replace(path)  # atomic: parallel episodes may write the same entry
     return parts

@@ -214,7 +214,7 @@ def carve_boxes(
 def _merge(solid: np.ndarray, cuts: list[np.ndarray]) -> list[ConvexPiece]:
     """Greedy blocks: from each free solid cell grow along x, then y, then z."""
     free = solid.copy()
-    out = []
+    out: list[ConvexPiece] = []
     nx, ny, nz = free.shape
     for i, j, k in zip(*np.nonzero(solid)):
         if not free[i, j, k]:

@@ -70,7 +70,8 @@ class Camera:
 
     def aimed(self, target: np.ndarray, distance: float) -> Camera:
         """This camera with its target and distance filled in where they were left open."""
-        t = self.target if self.target is not None else tuple(float(v) for v in target)
+        x, y, z = (float(v) for v in target)
+        t = self.target if self.target is not None else (x, y, z)
         return replace(self, target=t, distance=self.distance or float(distance))
 
     def pose(self) -> np.ndarray:
