@@ -108,6 +108,7 @@ class Scene:
     models: tuple[ExportModel, ...]
     camera: Camera
     prefixes: tuple[str, ...] = field(default=())
+    texts: tuple[str, ...] = field(default=(), repr=False)  # each model's MJCF, written once
 
     @classmethod
     def from_instances(
@@ -140,7 +141,8 @@ class Scene:
         cam = camera or Camera()
         cam = cam.aimed(centre, FRAMING * radius / np.sin(np.radians(cam.fovy) / 2))
         prefixes = tuple(f"obj{i}/" for i in range(len(placed)))
-        return cls(tuple(placed), models, cam, prefixes)
+        texts = tuple(write_mjcf(m) for m in models)
+        return cls(tuple(placed), models, cam, prefixes, texts)
 
     # -- the model -----------------------------------------------------------------------------
     def spec(
@@ -161,8 +163,9 @@ class Scene:
             xyaxes=np.concatenate([pose[:3, 0], pose[:3, 1]]),
             fovy=cam.fovy,
         )
-        for model, prefix in zip(self.models, self.prefixes):
-            child = mujoco.MjSpec.from_string(write_mjcf(model))
+        texts = self.texts or tuple(write_mjcf(m) for m in self.models)
+        for text, prefix in zip(texts, self.prefixes):
+            child = mujoco.MjSpec.from_string(text)
             for key in list(child.keys):
                 child.delete(key)  # joint values are set by name after compiling
             root.attach(child, prefix=prefix, frame=root.worldbody.add_frame())
