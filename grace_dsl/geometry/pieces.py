@@ -31,6 +31,7 @@ from grace_dsl.geometry.primitives import FULL_TURN, validate
 
 SEGMENTS = 24  # pieces per full turn of a ring, tube or torus (at least; thin walls need more)
 MAX_SEGMENTS = 256
+WALL = 0.85  # the share of a ring's wall thickness each annular piece keeps at its middle
 _HALF_TURN = math.pi + 1e-9
 
 
@@ -81,8 +82,8 @@ def _annulus(
     r_in: float, r_out: float, height: float, start: float, angle: float, segments: int
 ) -> tuple[ConvexPiece, ...]:
     """Annular segments between ``start`` and ``start + angle`` (from +x, about z)."""
-    # the chord must stay outside the tangent: cos(phi) r_out - r_in >= half the wall
-    half_max = math.acos(min(1.0, (r_in + (r_out - r_in) / 2) / r_out))
+    # each piece keeps WALL of the wall's thickness: cos(phi) r_out - r_in >= WALL (r_out - r_in)
+    half_max = math.acos(min(1.0, (r_in + WALL * (r_out - r_in)) / r_out))
     n = _count(angle, segments, half_max)
     phi = angle / n / 2
     depth = r_out * math.cos(phi) - r_in  # radial extent of each piece
