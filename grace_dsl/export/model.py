@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import trimesh
 
 from grace_dsl.export.common import xml_name
-from grace_dsl.export.shapes import Geom, link_geoms
+from grace_dsl.export.shapes import Geom, link_solids
+from grace_dsl.geometry.pieces import SEGMENTS
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.masks import has_masks, present
 
@@ -32,6 +33,10 @@ DENSITY = 600.0  # kg/m^3, wood: a plausible default for doors, drawers and hand
 WALL = 0.018  # m, the usual board thickness: large bodies are boxes of boards, not solid blocks
 DAMPING = 0.5  # N m s/rad (or N s/m): enough to keep a free-swinging door from ringing
 FRICTION = 0.1  # N m (or N): a little static friction, as real hinges and slides have
+ARMATURE = 0.01  # kg m^2 (or kg): rotor-like inertia on each joint; keeps light parts stable
+HOLD = 3.0  # friction loss at least this times the closed part's pull by gravity (see _held)
+SETTLE = 1.0  # s: damping at least inertia / SETTLE, so a heavy door slows like a soft hinge
+GRAVITY = np.array([0.0, 0.0, -9.81])  # world, m/s^2 (MuJoCo's default)
 NOMINAL_MASS = 0.01  # kg, for links without geometry: simulators reject massless moving bodies
 KINDS = {"revolute", "prismatic", "continuous", "fixed"}
 
@@ -53,8 +58,9 @@ class Link:
     source: str  # the concept's qualified link name
     origin: np.ndarray  # (3,) the frame's origin in the concept frame at q = 0 (its joint origin)
     offset: np.ndarray  # (4, 4) exported frame = runtime link pose @ offset
-    geoms: tuple[Geom, ...]
+    geoms: tuple[Geom, ...]  # visual: the pieces whole (a board box as its boards)
     inertial: Inertial
+    collision: tuple[Geom, ...] = ()  # convex pieces, what a simulator collides
 
 
 @dataclass(frozen=True)
@@ -71,6 +77,7 @@ class Joint:
     value: float  # the instance's joint value: the exported model's initial state
     damping: float
     friction: float
+    armature: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -94,14 +101,19 @@ class ExportModel:
 @dataclass(frozen=True)
 class ExportOptions:
     """How the exported model is made: material (``density`` kg/m^3, ``wall`` m: each solid
-    weighs the lesser of its full volume and a shell of this thickness), joint damping and
-    friction, and mesh segments per full circle."""
+    weighs the lesser of its full volume and a shell of this thickness), joint damping,
+    friction and armature, mesh segments per full circle, and the collision geometry: convex
+    pieces (``segments`` per full turn of a ring, tube or torus), or none (``collision=False``:
+    a model to look at)."""
 
     density: float = DENSITY
     wall: float = WALL
     damping: float = DAMPING
     friction: float = FRICTION
+    armature: float = ARMATURE
     resolution: int = 32  # mesh segments per full circle
+    segments: int = SEGMENTS
+    collision: bool = True
 
 
 def sanitize(name: str, taken: set[str]) -> str:
@@ -146,6 +158,8 @@ def build_model(inst: Instance, options: ExportOptions | None = None) -> ExportM
     out_joints = tuple(
         _joint(j, names, link_origin, axes, lo, hi, inst.q, opts, taken) for j in order
     )
+    gravity = inst.pose[:3, :3].T @ GRAVITY  # in the concept frame
+    out_joints = tuple(_held(j, links, out_joints, gravity) for j in out_joints)
     for w in warnings:
         log.warning("%s: %s", concept.name, w)
     return ExportModel(concept.name, inst.pose.copy(), links, out_joints, tuple(warnings))
@@ -189,8 +203,11 @@ def _link(
     closed."""
     offset = np.linalg.solve(rest, _translation(origin))
     frame = _translation(origin)  # the exported frame in the concept frame at q = 0
-    geoms = link_geoms(inst, src, frame, opts.resolution, warnings)
-    return Link(name, src, origin.copy(), offset, geoms, _inertial(geoms, opts.density, opts.wall))
+    geoms, solid = link_solids(
+        inst, src, frame, opts.resolution, warnings, opts.segments, opts.collision
+    )
+    inertial = _inertial(geoms, opts.density, opts.wall)
+    return Link(name, src, origin.copy(), offset, geoms, inertial, solid)
 
 
 def _joint(
@@ -231,7 +248,53 @@ def _joint(
         value,
         opts.damping if kind != "fixed" else 0.0,
         opts.friction if kind != "fixed" else 0.0,
+        opts.armature if kind != "fixed" else 0.0,
     )
+
+
+def _held(
+    joint: Joint, links: tuple[Link, ...], joints: tuple[Joint, ...], gravity: np.ndarray
+) -> Joint:
+    """The joint with enough friction loss to hold its closed part (q = 0) where it is put,
+    and damping that grows with what it moves (at least inertia / ``SETTLE``).
+
+    Real doors, flaps, levers and switches stay closed by a latch, a spring or a detent, which
+    the concepts do not describe. Where gravity at q = 0 pulls the part (and what hangs on it)
+    towards opening (or, for a joint whose range holds 0 inside it, either way), the friction
+    loss is raised to ``HOLD`` times that pull, so a closed oven door stays closed; a pull
+    into the closed limit needs nothing."""
+    if joint.kind == "fixed":
+        return joint
+    origin = {link.name: link.origin for link in links}  # exported frames at q = 0
+    below = _subtree(joint.child, joints)
+    pull, inertia = 0.0, 0.0
+    for link in links:
+        if link.name in below:
+            force = link.inertial.mass * gravity
+            com = origin[link.name] + link.inertial.com
+            if joint.kind == "prismatic":
+                pull += float(force @ joint.axis)
+                inertia += link.inertial.mass
+            else:
+                arm = com - origin[joint.child]
+                pull += float(np.cross(arm, force) @ joint.axis)
+                off = arm - (arm @ joint.axis) * joint.axis
+                inertia += float(joint.axis @ link.inertial.inertia @ joint.axis)
+                inertia += link.inertial.mass * float(off @ off)
+    joint = replace(joint, damping=max(joint.damping, inertia / SETTLE))
+    lo, hi = joint.lo, joint.hi
+    opening = 0.0 if lo is None or hi is None or lo < 0 < hi else (1.0 if hi > 0 else -1.0)
+    if opening != 0.0 and pull * opening <= 0:
+        return joint  # pulled into its closed limit: the limit (or a contact) holds it
+    return replace(joint, friction=max(joint.friction, HOLD * abs(pull)))
+
+
+def _subtree(link: str, joints: tuple[Joint, ...]) -> set[str]:
+    out = {link}
+    for j in joints:
+        if j.parent == link:
+            out |= _subtree(j.child, joints)
+    return out
 
 
 def _inertial(geoms: tuple[Geom, ...], density: float, wall: float) -> Inertial:

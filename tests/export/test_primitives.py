@@ -77,9 +77,13 @@ def test_cli_writes_urdf_mjcf_and_mesh(lib, name, tmp_path, capsys) -> None:
     assert "wrote" in capsys.readouterr().out
     mj = mujoco.MjModel.from_xml_path(str(tmp_path / "p.xml"))
     inst = lib[name].instantiate()
-    # a BoardBox is written as its boards (boxes MuJoCo collides exactly), the others whole
-    geoms = len(convex_pieces(name, inst.params) or ()) if name == "BoardBox" else 1
-    assert geoms > 1 or name != "BoardBox"
-    assert mj.ngeom == geoms and mj.nbody == 2  # the world and the primitive
+    # visual: a BoardBox as its boards, the others whole; collision: the convex pieces
+    split = len(convex_pieces(name, inst.params) or ())
+    visual = split if name == "BoardBox" else 1
+    colliding = mj.geom_contype != 0
+    assert split > 1 or name not in ("BoardBox", "RectRing", "Tube", "Ring", "Torus")
+    assert int(colliding.sum()) == max(split, 1) and int((~colliding).sum()) == visual
+    assert set(mj.geom_group[colliding]) == {3} and set(mj.geom_group[~colliding]) == {2}
+    assert mj.nbody == 2  # the world and the primitive
     solid = 600 * volume(name, inst.params)
     assert 0 < mj.body_mass[1] <= solid * 1.02  # at most the solid body (a shell if lighter)
