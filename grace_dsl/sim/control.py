@@ -21,6 +21,7 @@ from grace_dsl.runtime.instance import Instance
 
 LEAD = 0.04  # m the target runs ahead of the hand's pose at the measured joint value
 ROT_RADIUS = 0.05  # m: a radian of hand rotation counts as this much travel (a knob's twist)
+SPEED = 0.15  # m/s of hand travel along the path: slow enough that a part does not coast
 MIN_RATE = 1e-4  # m per joint unit below which the joint does not move the hand
 
 
@@ -37,6 +38,7 @@ class PathFollower:
     goal: float  # joint value the target never passes
     sign: float  # +1 opening (q grows), -1 closing
     lead: float = LEAD
+    speed: float = SPEED  # m/s the reference may move the hand along the path
 
     @staticmethod
     def from_grasp(
@@ -61,12 +63,22 @@ class PathFollower:
 
     def target(self, q_measured: float) -> np.ndarray:
         """The pose a lead ahead of the measured joint value, never beyond the goal."""
+        return self.pose_at(self.ahead(q_measured))
+
+    def ahead(self, q_measured: float) -> float:
+        """The joint value a lead ahead of the measured one, never beyond the goal."""
         ahead = q_measured + self.sign * self.lookahead(q_measured)
-        if self.sign > 0:
-            ahead = min(ahead, self.goal)
-        else:
-            ahead = max(ahead, self.goal)
-        return self.pose_at(ahead)
+        return min(ahead, self.goal) if self.sign > 0 else max(ahead, self.goal)
+
+    def advance(self, q_measured: float, q_ref: float, dt: float) -> float:
+        """The next reference joint value: towards ``ahead(q_measured)``, but no faster than
+        ``speed`` (m/s of hand travel) from ``q_ref``; it falls back at once if the joint lags,
+        so the hand never runs more than a lead ahead of the part."""
+        want = self.ahead(q_measured)
+        step = self.lookahead(q_ref) * self.speed * dt / self.lead
+        if self.sign * (want - q_ref) <= 0:
+            return want
+        return q_ref + self.sign * min(self.sign * (want - q_ref), step)
 
 
 def link_world(inst: Instance, joint: str, q: np.ndarray) -> np.ndarray:

@@ -130,7 +130,7 @@ def execute(
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
     world = World.build(inst, gripper, start)
     if pinch:
-        world.set_fingers(open_to)
+        world.set_fingers(open_to, at_once=True)
     travel = float(np.linalg.norm(grasp[:3, 3] - start[:3, 3]))
     duration = travel / APPROACH_SPEED
     t0 = world.time
@@ -177,14 +177,17 @@ def _follow(
     done_at = lo + (FOLLOW_TO - 0.05) * (hi - lo) if task.sign > 0 else lo + CLOSE_GOAL / 2 * (hi - lo)
     end = world.time + max(seconds, 0.0)
     off_since: float | None = None
-    target = follower.target(world.q(task.joint))
+    q_ref = world.q(task.joint)
+    target = follower.pose_at(q_ref)
+    tick = CONTROL_EVERY * world.model.opt.timestep
     steps = 0
     while world.time < end:
         q = world.q(task.joint)
         if (q - done_at) * task.sign >= 0:
             return False
         if steps % CONTROL_EVERY == 0:
-            target = follower.target(q)
+            q_ref = follower.advance(q, q_ref, tick)
+            target = follower.pose_at(q_ref)
             drift = float(np.linalg.norm(world.hand_pose()[:3, 3] - follower.pose_at(q)[:3, 3]))
             if drift > SLIP:
                 off_since = world.time if off_since is None else off_since
@@ -204,8 +207,9 @@ def _finish(
 ) -> Outcome:
     """Let go, back off and settle; the joint value after that is the episode's result."""
     if not unstable:
-        world.set_fingers(world.hand.finger_travel * 2)
         hold = world.hand_pose()
+        _run(world, SETTLE, lambda: hold)  # still holding: the part stops with the hand
+        world.set_fingers(world.hand.finger_travel * 2)
         _run(world, SETTLE, lambda: hold)
         back = hold.copy()
         back[:3, 3] -= hold[:3, 2] * RETREAT

@@ -33,6 +33,10 @@ PANDA_MASS = 0.73  # kg, panda_hand's inertial in panda.urdf
 PANDA_INERTIA = (0.001, 0.0025, 0.0017)  # kg m^2, ibid.
 FINGER_MASS = 0.015  # kg, panda_leftfinger's inertial
 PAD_FRICTION = "1.2 0.02 0.0001"  # rubber pads: sliding, torsional, rolling
+# stiff pad contacts: 70 N on a 4 mm bar must not sink the pads through it (MuJoCo's default
+# 20 ms time constant lets them in by millimetres); 4 ms is twice the 2 ms step
+PAD_SOLREF = "0.004 1"
+PAD_SOLIMP = "0.95 0.99 0.001"
 HAND_GROUP, OBJECT_GROUP = 1, 2  # contype bits: the hand touches the object, not itself
 FINGER_KP = 4000.0  # N/m of the finger position servo (saturates at the force cap)
 
@@ -118,6 +122,8 @@ def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FO
         g = _box(parent, f"pad_{label}", pad)
         g.set("friction", PAD_FRICTION)
         g.set("condim", "4")
+        g.set("solref", PAD_SOLREF)
+        g.set("solimp", PAD_SOLIMP)
         for i, block in enumerate(gripper.fingers):
             _box(parent, f"finger_{label}{i}", block if side > 0 else block.mirrored())
         if panda:

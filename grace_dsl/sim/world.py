@@ -23,6 +23,7 @@ from grace_dsl.sim.control import Impedance
 from grace_dsl.sim.hand import GRASP_FORCE, HAND_GROUP, OBJECT_GROUP, HandSpec, build_hand
 
 TIMESTEP = 0.002  # s
+FINGER_SPEED = 0.1  # m/s per finger: panda.urdf's finger joint velocity limit is 0.2
 LINEAR_DAMPING = 70.0  # N s/m on the hand's free joint: about critical for 1500 N/m, 0.76 kg
 ANGULAR_DAMPING = 0.8  # N m s/rad
 ANGULAR_ARMATURE = 0.003  # kg m^2 added to the hand's rotation (a stiffer spring stays stable)
@@ -38,6 +39,7 @@ class World:
     joint_qpos: dict[str, int]  # concept joint name -> qpos address
     hand_body: int
     impedance: Impedance
+    finger_goal: float = 0.0
 
     @staticmethod
     def build(
@@ -80,7 +82,7 @@ class World:
                 addresses[j.source] = adr
                 data.qpos[adr] = inst.joints[j.source]
         w = World(model, data, spec, addresses, model.body("hand").id, impedance or Impedance())
-        w.set_fingers(0.0)
+        w.set_fingers(0.0, at_once=True)
         mujoco.mj_forward(model, data)
         return w
 
@@ -110,15 +112,25 @@ class World:
         )
 
     # -- driving
-    def set_fingers(self, width: float) -> None:
-        """Command the pads ``width`` apart (each finger half of it; force capped)."""
-        half = min(max(width / 2, 0.0), self.hand.finger_travel)
+    def set_fingers(self, width: float, at_once: bool = False) -> None:
+        """Command the pads ``width`` apart (each finger half of it; force capped). The command
+        moves at the real finger speed (``FINGER_SPEED``) unless ``at_once``."""
+        self.finger_goal = min(max(width / 2, 0.0), self.hand.finger_travel)
+        if at_once:
+            for name in self.hand.actuators:
+                self.data.ctrl[self.model.actuator(name).id] = self.finger_goal
+
+    def _ramp_fingers(self) -> None:
+        step = FINGER_SPEED * self.model.opt.timestep
         for name in self.hand.actuators:
-            self.data.ctrl[self.model.actuator(name).id] = half
+            i = self.model.actuator(name).id
+            now = float(self.data.ctrl[i])
+            self.data.ctrl[i] = now + max(-step, min(step, self.finger_goal - now))
 
     def step(self, target: np.ndarray) -> None:
         """One physics step with the impedance wrench towards ``target`` at the gripper origin."""
         d = self.data
+        self._ramp_fingers()
         d.qfrc_applied[:] = 0.0
         w = self.impedance.wrench(self.hand_pose(), target)
         mujoco.mj_applyFT(
