@@ -51,6 +51,7 @@ FOLLOW_TO = 0.9  # fraction of the range an open follows to (strict needs 0.5)
 SLIP = 0.05  # m the hand may drift off the path at the measured joint value before it slipped
 SLIP_TIME = 0.3  # s the drift must last
 CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 ms)
+PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
 RETREAT = 0.1
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
 PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch  # m backed off along -z after letting go
@@ -146,12 +147,14 @@ def execute(
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     lo, hi = inst.joint_limits()[task.joint]
-    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo
+    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
     slipped = _follow(world, task, follower, lo, hi, budget - world.time)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
-    return _finish(world, task, arrived, slipped, "")
+    # a closed part is held pressed against its stop while the hand lets go
+    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    return _finish(world, task, arrived, slipped, "", hold=hold)
 
 
 def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) -> np.ndarray:
@@ -174,7 +177,8 @@ def _follow(
     world: World, task: TaskAction, follower: PathFollower, lo: float, hi: float, seconds: float
 ) -> bool:
     """Drive along the path until the joint reaches its goal; True if the hand slipped off."""
-    done_at = lo + (FOLLOW_TO - 0.05) * (hi - lo) if task.sign > 0 else lo + CLOSE_GOAL / 2 * (hi - lo)
+    span = hi - lo
+    done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
     end = world.time + max(seconds, 0.0)
     off_since: float | None = None
     q_ref = world.q(task.joint)
@@ -203,11 +207,18 @@ def _follow(
 
 
 def _finish(
-    world: World, task: TaskAction, arrived: bool, slipped: bool, detail: str, unstable: bool = False
+    world: World,
+    task: TaskAction,
+    arrived: bool,
+    slipped: bool,
+    detail: str,
+    unstable: bool = False,
+    hold: np.ndarray | None = None,
 ) -> Outcome:
-    """Let go, back off and settle; the joint value after that is the episode's result."""
+    """Let go (at ``hold``, else where the hand is), back off and settle; the joint value
+    after that is the episode's result."""
     if not unstable:
-        hold = world.hand_pose()
+        hold = world.hand_pose() if hold is None else hold
         _run(world, SETTLE, lambda: hold)  # still holding: the part stops with the hand
         world.set_fingers(world.hand.finger_travel * 2)
         _run(world, SETTLE, lambda: hold)
