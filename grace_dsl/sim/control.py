@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from grace_dsl.runtime.instance import Instance
@@ -121,13 +122,31 @@ class Impedance:
 
     def wrench(self, pose: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The world (force, torque) 6-vector pulling ``pose`` towards ``target``."""
-        force = self.stiffness * (target[:3, 3] - pose[:3, 3])
-        torque = self.rot_stiffness * rotation_vector(target[:3, :3] @ pose[:3, :3].T)
+        return self.wrench_at(pose[:3, 3], pose[:3, :3], target[:3, 3], quat_of(target))
+
+    def wrench_at(
+        self, pos: np.ndarray, rot: np.ndarray, target_pos: np.ndarray, target_quat: np.ndarray
+    ) -> np.ndarray:
+        """``wrench`` from the hand's position and rotation matrix and the target's position
+        and (w, x, y, z) quaternion: the per-step form, with MuJoCo's quaternion arithmetic."""
+        force = self.stiffness * (target_pos - pos)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rot).reshape(-1))
+        local = np.empty(3)
+        mujoco.mju_subQuat(local, target_quat, quat)  # in the hand's frame
+        torque = self.rot_stiffness * (rot @ local)
         return np.concatenate([_cap(force, self.max_force), _cap(torque, self.max_torque)])
 
 
+def quat_of(pose: np.ndarray) -> np.ndarray:
+    """The (w, x, y, z) quaternion of a pose's rotation (MuJoCo's convention)."""
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(pose[:3, :3], dtype=float).reshape(-1))
+    return quat
+
+
 def _cap(v: np.ndarray, limit: float) -> np.ndarray:
-    n = float(np.linalg.norm(v))
+    n = math.sqrt(float(v @ v))
     return v if n <= limit else v * (limit / n)
 
 

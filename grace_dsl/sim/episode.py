@@ -201,7 +201,7 @@ def _follow(
                 off_since = None
         world.step(target)
         steps += 1
-        if world.unstable():
+        if steps % CONTROL_EVERY == 0 and world.unstable():
             return False
     return False
 
@@ -235,8 +235,10 @@ def _run(world: World, seconds: float, target: Callable[[], np.ndarray]) -> None
     end = world.time + seconds
     goal = target()
     steps = 0
-    while world.time < end and not world.unstable():
+    while world.time < end:
         if steps % CONTROL_EVERY == 0:
+            if world.unstable():
+                return
             goal = target()
         world.step(goal)
         steps += 1

@@ -9,6 +9,7 @@ with every part of the object.
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -19,7 +20,7 @@ from grace_dsl.export.mjcf import write_mjcf
 from grace_dsl.export.model import build_model
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.control import Impedance
+from grace_dsl.sim.control import Impedance, quat_of
 from grace_dsl.sim.hand import GRASP_FORCE, HAND_GROUP, OBJECT_GROUP, HandSpec, build_hand
 
 TIMESTEP = 0.002  # s
@@ -40,6 +41,8 @@ class World:
     hand_body: int
     impedance: Impedance
     finger_goal: float = 0.0
+    _target: np.ndarray | None = None
+    _target_quat: np.ndarray | None = None
 
     @staticmethod
     def build(
@@ -107,8 +110,9 @@ class World:
         return float(sum(self.data.qpos[self.model.joint(j).qposadr[0]] for j in self.hand.fingers))
 
     def unstable(self) -> bool:
-        return not np.all(np.isfinite(self.data.qpos)) or bool(
-            self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        """The state blew up (MuJoCo flags a bad acceleration and resets it)."""
+        return bool(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number) or not all(
+            map(math.isfinite, self.data.qpos)
         )
 
     # -- driving
@@ -129,12 +133,12 @@ class World:
 
     def step(self, target: np.ndarray) -> None:
         """One physics step with the impedance wrench towards ``target`` at the gripper origin."""
-        d = self.data
+        if target is not self._target:  # a new target: its quaternion once, not every step
+            self._target, self._target_quat = target, quat_of(target)
+        d, b = self.data, self.hand_body
         self._ramp_fingers()
         d.qfrc_applied[:] = 0.0
-        w = self.impedance.wrench(self.hand_pose(), target)
-        mujoco.mj_applyFT(
-            self.model, d, w[:3], w[3:], d.xpos[self.hand_body].copy(), self.hand_body,
-            d.qfrc_applied,
-        )
+        pos = d.xpos[b].copy()
+        w = self.impedance.wrench_at(pos, d.xmat[b].reshape(3, 3), target[:3, 3], self._target_quat)
+        mujoco.mj_applyFT(self.model, d, w[:3], w[3:], pos, b, d.qfrc_applied)
         mujoco.mj_step(self.model, d)
