@@ -5,6 +5,11 @@ hand from ``grace_dsl.sim.hand``. The object's own bodies do not collide with ea
 joints' ranges already keep the parts where they belong, and the export's collision shapes may
 still overlap at rest (a carcass exported as a solid block around its drawer). The hand collides
 with every part of the object.
+
+The parts are balanced against gravity by default: the exported joints carry little friction,
+so a bottom-hinged oven door would fall open and a lid fall shut before the hand arrives, where
+the real ones are held by a counterbalance spring or a friction hinge. The protocol places the
+joint where it starts, and the part stays there until the hand moves it.
 """
 
 from __future__ import annotations
@@ -46,13 +51,21 @@ class World:
 
     @staticmethod
     def build(
-        inst: Instance, gripper: Gripper, hand_pose: np.ndarray, impedance: Impedance | None = None
+        inst: Instance,
+        gripper: Gripper,
+        hand_pose: np.ndarray,
+        impedance: Impedance | None = None,
+        balanced: bool = True,
     ) -> World:
-        """The world of ``inst`` (joints at its values) with the hand at ``hand_pose``."""
+        """The world of ``inst`` (joints at its values) with the hand at ``hand_pose``;
+        ``balanced``: the object's parts do not fall under gravity (see the module docstring)."""
         exported = build_model(inst)
         root = ET.fromstring(write_mjcf(exported))
         for key in root.findall("keyframe"):  # its qpos no longer fits once the hand is in
             root.remove(key)
+        if balanced:  # a real door or lid is counterbalanced or held by a friction hinge
+            for body in root.iter("body"):
+                body.set("gravcomp", "1")
         for geom in root.iter("geom"):
             geom.set("contype", str(OBJECT_GROUP))
             geom.set("conaffinity", str(HAND_GROUP))
