@@ -59,7 +59,8 @@ class PathFollower:
         """Joint units that move the hand about ``lead`` along the path from ``q``."""
         dq = 1e-3 * self.sign
         a, b = self.pose_at(q), self.pose_at(q + dq)
-        rate = (np.linalg.norm(b[:3, 3] - a[:3, 3]) + ROT_RADIUS * rotation_angle(a, b)) / 1e-3
+        travel = float(np.linalg.norm(b[:3, 3] - a[:3, 3]))
+        rate = (travel + ROT_RADIUS * rotation_angle(a, b)) / 1e-3
         return self.lead / max(rate, MIN_RATE)
 
     def target(self, q_measured: float) -> np.ndarray:

@@ -52,9 +52,9 @@ SLIP = 0.05  # m the hand may drift off the path at the measured joint value bef
 SLIP_TIME = 0.3  # s the drift must last
 CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 ms)
 PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
-RETREAT = 0.1
+RETREAT = 0.1  # m backed off along -z after letting go
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
-PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch  # m backed off along -z after letting go
+PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch
 
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
@@ -137,7 +137,7 @@ def execute(
     t0 = world.time
     _run(world, duration + SETTLE, lambda: blend(start, grasp, (world.time - t0) / duration))
     now = world.hand_pose()
-    arrived = (
+    arrived = bool(
         np.linalg.norm(now[:3, 3] - grasp[:3, 3]) < ARRIVED
         and rotation_angle(now, grasp) < ARRIVED_ROT
     )
@@ -227,8 +227,14 @@ def _finish(
         t0 = world.time
         _run(world, 2 * SETTLE, lambda: blend(hold, back, (world.time - t0) / SETTLE))
     q = world.q(task.joint)
-    return Outcome(q if math.isfinite(q) else float("nan"), world.time, arrived, slipped,
-                   unstable or world.unstable(), detail)
+    return Outcome(
+        q if math.isfinite(q) else float("nan"),
+        world.time,
+        arrived,
+        slipped,
+        unstable or world.unstable(),
+        detail,
+    )
 
 
 def _run(world: World, seconds: float, target: Callable[[], np.ndarray]) -> None:

@@ -68,9 +68,9 @@ def panda_meshes() -> Path:
     )
 
 
-def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FORCE) -> tuple[
-    HandSpec, list[ET.Element], ET.Element, list[ET.Element]
-]:
+def build_hand(
+    gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FORCE
+) -> tuple[HandSpec, list[ET.Element], ET.Element, list[ET.Element]]:
     """The hand's MJCF pieces: (spec, mesh assets, the body at ``pose``, finger actuators)."""
     panda = gripper.name == "panda"
     assets: list[ET.Element] = []
@@ -80,15 +80,25 @@ def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FO
     if panda:
         meshes = panda_meshes()
         for name in ("hand", "finger"):
-            assets.append(ET.Element("mesh", name=f"panda_{name}", file=str(meshes / f"{name}.stl")))
+            assets.append(
+                ET.Element("mesh", name=f"panda_{name}", file=str(meshes / f"{name}.stl"))
+            )
         ET.SubElement(
-            body, "inertial", pos=f"-0.01 0 {PANDA_HAND_Z + 0.03:g}", mass=_num(PANDA_MASS),
+            body,
+            "inertial",
+            pos=f"-0.01 0 {PANDA_HAND_Z + 0.03:g}",
+            mass=_num(PANDA_MASS),
             diaginertia=_vec(PANDA_INERTIA),
         )
         _geom(body, "palm", type="mesh", mesh="panda_hand", pos=f"0 0 {PANDA_HAND_Z:g}")
     else:
-        ET.SubElement(body, "inertial", pos="0 0 -0.08", mass=_num(PANDA_MASS),
-                      diaginertia=_vec(PANDA_INERTIA))
+        ET.SubElement(
+            body,
+            "inertial",
+            pos="0 0 -0.08",
+            mass=_num(PANDA_MASS),
+            diaginertia=_vec(PANDA_INERTIA),
+        )
         for i, box in enumerate(gripper.palm):
             _box(body, f"palm{i}", box)
     spec_fingers: list[str] = []
@@ -102,16 +112,33 @@ def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FO
             parent.set("gravcomp", "1")
             joint = f"finger_{label}_slide"
             ET.SubElement(
-                parent, "joint", name=joint, type="slide", axis=f"0 {side:g} 0",
-                range=f"0 {travel:g}", limited="true", damping="40", armature="0.1",
+                parent,
+                "joint",
+                name=joint,
+                type="slide",
+                axis=f"0 {side:g} 0",
+                range=f"0 {travel:g}",
+                limited="true",
+                damping="40",
+                armature="0.1",
             )
-            ET.SubElement(parent, "inertial", pos=f"0 {side * 0.01:g} -0.03",
-                          mass=_num(FINGER_MASS), diaginertia="2.4e-6 2.4e-6 7.5e-7")
+            ET.SubElement(
+                parent,
+                "inertial",
+                pos=f"0 {side * 0.01:g} -0.03",
+                mass=_num(FINGER_MASS),
+                diaginertia="2.4e-6 2.4e-6 7.5e-7",
+            )
             spec_fingers.append(joint)
             act = ET.Element(
-                "position", name=f"{joint}_servo", joint=joint, kp=_num(FINGER_KP),
-                forcelimited="true", forcerange=f"{-grasp_force:g} {grasp_force:g}",
-                ctrlrange=f"0 {travel:g}", ctrllimited="true",
+                "position",
+                name=f"{joint}_servo",
+                joint=joint,
+                kp=_num(FINGER_KP),
+                forcelimited="true",
+                forcerange=f"{-grasp_force:g} {grasp_force:g}",
+                ctrlrange=f"0 {travel:g}",
+                ctrllimited="true",
             )
             actuators.append(act)
         pad = HandBox(
@@ -127,9 +154,18 @@ def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FO
         for i, block in enumerate(gripper.fingers):
             _box(parent, f"finger_{label}{i}", block if side > 0 else block.mirrored())
         if panda:
-            vis = ET.SubElement(parent, "geom", name=f"finger_{label}_visual", type="mesh",
-                                mesh="panda_finger", pos=f"0 0 {PANDA_HAND_Z + PANDA_FINGER_Z:g}",
-                                contype="0", conaffinity="0", group="2", rgba="0.9 0.9 0.9 1")
+            vis = ET.SubElement(
+                parent,
+                "geom",
+                name=f"finger_{label}_visual",
+                type="mesh",
+                mesh="panda_finger",
+                pos=f"0 0 {PANDA_HAND_Z + PANDA_FINGER_Z:g}",
+                contype="0",
+                conaffinity="0",
+                group="2",
+                rgba="0.9 0.9 0.9 1",
+            )
             if side < 0:  # the right finger is the left one turned half a turn (panda.urdf)
                 vis.set("euler", f"0 0 {math.pi:g}")
     spec = HandSpec(
@@ -145,13 +181,17 @@ def build_hand(gripper: Gripper, pose: np.ndarray, grasp_force: float = GRASP_FO
 def _box(parent: ET.Element, name: str, box: HandBox) -> ET.Element:
     pose = box.pose()
     return _geom(
-        parent, name, type="box", size=_vec(box.half_extents), pos=_vec(pose[:3, 3]),
+        parent,
+        name,
+        type="box",
+        size=_vec(box.half_extents),
+        pos=_vec(pose[:3, 3]),
         quat=_vec(quat_wxyz(pose)),
     )
 
 
 def _geom(parent: ET.Element, name: str, **attrs: str) -> ET.Element:
-    g = ET.SubElement(parent, "geom", name=f"hand_{name}", **attrs)
+    g = ET.SubElement(parent, "geom", {"name": f"hand_{name}", **attrs})
     g.set("contype", str(HAND_GROUP))
     g.set("conaffinity", str(OBJECT_GROUP))
     g.set("rgba", "0.35 0.35 0.4 1")

@@ -60,7 +60,11 @@ class Draw:
 def episode_rng(config: EpisodeConfig, seed: int) -> np.random.Generator:
     """The episode's generator: from the seed, the concept and the task, so that the same seed
     gives independent draws for different concepts and tasks."""
-    key = [int(seed) & 0xFFFFFFFF, zlib.crc32(config.concept.encode()), zlib.crc32(config.task.encode())]
+    key = [
+        int(seed) & 0xFFFFFFFF,
+        zlib.crc32(config.concept.encode()),
+        zlib.crc32(config.task.encode()),
+    ]
     return np.random.default_rng(np.random.SeedSequence(key))
 
 
@@ -68,8 +72,12 @@ def task_action(concept: Concept, task: Task) -> TaskAction:
     """The concept's action for ``task``: ``open``/``close`` by name when it has them on a
     bounded joint, else the first opening (closing) action on a bounded joint. For ``close`` the
     joint is the one ``open`` would move, so both tasks act on the same part."""
-    bounded = [a for a in concept.actions.values() if a.joint is not None and not a.fixed_twist]
-    bounded = [a for a in bounded if concept.joints[a.joint].kind in ("revolute", "prismatic")]
+    kinds = {n: j.kind for n, j in concept.joints.items()}
+    bounded = [
+        a
+        for a in concept.actions.values()
+        if a.joint is not None and not a.fixed_twist and kinds[a.joint] in ("revolute", "prismatic")
+    ]
     opening = sorted((a for a in bounded if a.opening), key=lambda a: a.name != "open")
     if not opening:
         raise UnknownNameError(
@@ -115,9 +123,7 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
     )
 
 
-def initial_joint(
-    task: Task, lo: float, hi: float, rng: np.random.Generator
-) -> tuple[float, bool]:
+def initial_joint(task: Task, lo: float, hi: float, rng: np.random.Generator) -> tuple[float, bool]:
     """(q0, whether the start is the 'closed' half of the draws): see the module docstring."""
     closed = bool(rng.uniform() < P_CLOSED)
     span = hi - lo

@@ -146,7 +146,7 @@ class World:
 
     def step(self, target: np.ndarray) -> None:
         """One physics step with the impedance wrench towards ``target`` at the gripper origin."""
-        if target is not self._target:  # a new target: its quaternion once, not every step
+        if target is not self._target or self._target_quat is None:  # once per new target
             self._target, self._target_quat = target, quat_of(target)
         d, b = self.data, self.hand_body
         self._ramp_fingers()

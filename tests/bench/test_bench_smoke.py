@@ -29,6 +29,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_render.py",
         "bench_repeat.py",
         "bench_runtime.py",
+        "bench_sim.py",
         "bench_verify.py",
     ]
 
