@@ -48,3 +48,27 @@ def test_unsupported_configurations_raise_typed_errors() -> None:
         run_episode(EpisodeConfig("CabinetDrawer", agent="arm"), 0)
     with pytest.raises(ParameterError, match="oracle"):
         run_episode(EpisodeConfig("CabinetDrawer", mode="estimated"), 0)
+
+
+def test_hands_built_from_their_descriptions() -> None:
+    import numpy as np
+
+    import grace_dsl as eac
+    from grace_dsl.runtime.gripper import Gripper
+    from grace_dsl.sim.episode import Z_UP
+    from grace_dsl.sim.hand import GRASP_FORCE
+    from grace_dsl.sim.world import World
+
+    inst = eac.load_library()["CabinetDrawer"].instantiate(pose=Z_UP)
+    away = np.eye(4)
+    away[:3, 3] = (1.0, 0.0, 1.0)  # far from the object: the fingers move freely
+    panda = World.build(inst, Gripper.panda(), away)
+    assert panda.hand.fingers and panda.hand.grasp_force == GRASP_FORCE == 70.0
+    assert np.all(panda.model.actuator_forcerange == [[-70.0, 70.0], [-70.0, 70.0]])
+    panda.set_fingers(0.08)
+    for _ in range(600):  # 1.2 s: 40 mm per finger at 0.1 m/s
+        panda.step(away)
+    assert panda.opening() == pytest.approx(0.08, abs=1e-3)
+    assert np.allclose(panda.hand_pose()[:3, 3], away[:3, 3], atol=1e-3)  # it floats in place
+    pusher = World.build(inst, Gripper.load("pusher"), away)
+    assert pusher.hand.fingers == () and pusher.model.nu == 0  # a hand that cannot close
