@@ -22,7 +22,7 @@ import numpy as np
 from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
 from grace_dsl.runtime.gripper import Gripper, box_surface_grid
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.runtime.library import Concept, Library
+from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.manipulation import CLEARANCE, Option
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
 from grace_dsl.sim.protocol import (
@@ -328,7 +328,3 @@ def _library() -> Library:
 
     return load_library()
 
-
-def concept_of(name: str) -> Concept:
-    """A standard-library concept by name (for callers that pick categories)."""
-    return _library()[name]
