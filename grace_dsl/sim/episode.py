@@ -327,4 +327,3 @@ def _library() -> Library:
     from grace_dsl.runtime.library import load_library
 
     return load_library()
-
