@@ -4,7 +4,6 @@ change that breaks a benchmark fails the suite instead of rotting until someone 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -30,6 +29,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_render.py",
         "bench_repeat.py",
         "bench_runtime.py",
+        "bench_sim.py",
         "bench_sim_throughput.py",
         "bench_verify.py",
     ]
@@ -39,10 +39,6 @@ def test_every_script_is_smoke_tested() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("script", SCRIPTS)
 def test_smoke_run(script: str, tmp_path: Path) -> None:
-    if script == "bench_sim_throughput.py" and not importlib.util.find_spec(
-        "grace_dsl.sim.episode"
-    ):
-        pytest.skip("lands with simexec: needs grace_dsl.sim.episode")
     out = tmp_path / "result.json"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}  # this checkout's grace_dsl; the test cache
     run = subprocess.run(

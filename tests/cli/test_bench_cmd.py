@@ -4,7 +4,6 @@ episode function (the simulated one where it exists) writing every report file."
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 from pathlib import Path
 
@@ -126,9 +125,6 @@ def test_a_run_writes_the_report(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(
-    not importlib.util.find_spec("grace_dsl.sim.episode"), reason="lands with simexec"
-)
 def test_two_real_episodes_through_the_cli(tmp_path: Path) -> None:
     """The simulated episode end to end: a drawer opened and closed, one episode each."""
     argv = ["bench", "--categories", "CabinetDrawer", "--episodes", "1", "--out", str(tmp_path)]

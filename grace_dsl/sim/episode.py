@@ -1,0 +1,329 @@
+"""One physical episode with a flying hand: a pure function of (config, seed).
+
+The protocol (``grace_dsl.sim.protocol``) draws the object, its initial joint value and the
+camera; ``inst.rank`` picks the manipulation function (the best feasible option for this hand);
+the hand then comes in along its approach axis to the grasp, closes or not according to the
+option's mode (pinch closes on the part; hook, push and press keep the fingers shut), follows the
+action's path with the compliant controller (``grace_dsl.sim.control``: the target re-anchored on
+the measured joint value), lets go and backs off. A physical failure is a record with a reason
+from ``FAILURE_REASONS``, never an exception; a bad configuration raises.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
+from grace_dsl.runtime.gripper import Gripper, box_surface_grid
+from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.library import Library
+from grace_dsl.runtime.manipulation import CLEARANCE, Option
+from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.protocol import (
+    CLOSE_GOAL,
+    MOVED,
+    Draw,
+    TaskAction,
+    draw_episode,
+    lenient_success,
+    strict_success,
+    task_action,
+)
+from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
+from grace_dsl.sim.world import World
+
+# The object's +y (up in a concept) is world +z; its front (+z) faces world +x.
+Z_UP = np.array([[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0, 0, 0, 1]])
+BACK_OFF = 0.06  # m the hand starts behind the grasp, beyond the hand's approach distance
+APPROACH_SPEED = 0.25  # m/s along the approach line
+SETTLE = 0.3  # s held at the grasp before closing, and after letting go
+CLOSE_TIME = 0.5  # s for the fingers to close on the part
+ARRIVED = 0.015  # m: the hand reached the grasp if this close after the approach
+ARRIVED_ROT = math.radians(8.0)
+EMPTY = 0.002  # m: pads closer than this after closing held nothing
+FOLLOW_TO = 0.9  # fraction of the range an open follows to (strict needs 0.5)
+SLIP = 0.05  # m the hand may drift off the path at the measured joint value before it slipped
+SLIP_TIME = 0.3  # s the drift must last
+CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 ms)
+PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
+RETREAT = 0.1  # m backed off along -z after letting go
+PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
+PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch
+
+
+def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
+    """Run one episode of ``config`` with ``seed``; the same pair gives the same record."""
+    _check_config(config)
+    started = time.perf_counter()
+    concept = _library()[config.concept]
+    task = task_action(concept, config.task)
+    try:
+        draw = draw_episode(config, concept, seed)
+    except RequirementError as exc:
+        return _early(config, seed, task, "invalid_draw", str(exc), started)
+    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
+    inst = concept.instantiate(
+        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
+    )
+    gripper = Gripper.load(config.hand)
+    try:
+        options = inst.rank(task.action, gripper=gripper)
+    except GraceError as exc:
+        return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+    usable = [o for o in options if o.feasible]
+    if not usable:
+        why = options[0].reasons[0] if options and options[0].reasons else "no option"
+        return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst)
+    outcome = execute(inst, task, usable[0], gripper, config.max_seconds)
+    lo, hi = inst.joint_limits()[task.joint]
+    strict = strict_success(config.task, outcome.q_final, lo, hi)
+    lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
+    reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
+    return EpisodeRecord(
+        config=config,
+        seed=seed,
+        joint=task.joint,
+        q_range=(lo, hi),
+        q_initial=draw.q_initial,
+        q_final=outcome.q_final,
+        lenient=lenient,
+        strict=strict,
+        reason=reason,
+        detail=detail,
+        params=_jsonable(draw.params),
+        camera=_camera(draw, inst),
+        option=f"{usable[0].grasp} ({usable[0].mode})",
+        sim_seconds=outcome.sim_seconds,
+        wall_seconds=time.perf_counter() - started,
+    )
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What the hand's execution left behind."""
+
+    q_final: float
+    sim_seconds: float
+    arrived: bool  # the hand reached the grasp pose
+    slipped: bool  # the hand lost the part while following
+    unstable: bool = False
+    detail: str = ""
+
+
+def execute(
+    inst: Instance, task: TaskAction, option: Option, gripper: Gripper, budget: float
+) -> Outcome:
+    """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds."""
+    grasp = option.hand_pose if option.hand_pose is not None else option.pose
+    assert grasp is not None
+    pinch = option.mode == "pinch"
+    width = inst.grasp_width(option.grasp) if pinch else None
+    open_to = gripper.max_width if width is None else min(width + 2 * CLEARANCE, gripper.max_width)
+    if pinch:
+        grasp = deeper(inst, gripper, grasp, open_to)
+    start = grasp.copy()
+    start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
+    world = World.build(inst, gripper, start)
+    if pinch:
+        world.set_fingers(open_to, at_once=True)
+    travel = float(np.linalg.norm(grasp[:3, 3] - start[:3, 3]))
+    duration = travel / APPROACH_SPEED
+    t0 = world.time
+    _run(world, duration + SETTLE, lambda: blend(start, grasp, (world.time - t0) / duration))
+    now = world.hand_pose()
+    arrived = bool(
+        np.linalg.norm(now[:3, 3] - grasp[:3, 3]) < ARRIVED
+        and rotation_angle(now, grasp) < ARRIVED_ROT
+    )
+    if pinch:
+        world.set_fingers(0.0)
+        _run(world, CLOSE_TIME, lambda: grasp)
+        if world.opening() < EMPTY:
+            return _finish(world, task, arrived, True, "the fingers closed on nothing")
+    lo, hi = inst.joint_limits()[task.joint]
+    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
+    follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
+    slipped = _follow(world, task, follower, lo, hi, budget - world.time)
+    if world.unstable():
+        return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
+    # a closed part is held pressed against its stop while the hand lets go
+    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    return _finish(world, task, arrived, slipped, "", hold=hold)
+
+
+def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) -> np.ndarray:
+    """The pinch pose moved in along its approach so that the pads' middle, not their tips'
+    edge, closes on the part: as deep as ``PINCH_DEPTH`` allows without the open hand entering
+    the part (a grasp's origin sits at the fingertips, where a round bar squeezes out)."""
+    points = np.concatenate(
+        [box_surface_grid(b, 0.003) for b in gripper.hand_boxes(min(width, gripper.max_width))]
+    )
+    for depth in PINCH_DEPTHS:
+        pose = grasp.copy()
+        pose[:3, 3] += grasp[:3, 2] * depth
+        world = points @ pose[:3, :3].T + pose[:3, 3]
+        if float(np.min(inst.sdf(world))) > -PENETRATION:
+            return pose
+    return grasp
+
+
+def _follow(
+    world: World, task: TaskAction, follower: PathFollower, lo: float, hi: float, seconds: float
+) -> bool:
+    """Drive along the path until the joint reaches its goal; True if the hand slipped off."""
+    span = hi - lo
+    done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
+    end = world.time + max(seconds, 0.0)
+    off_since: float | None = None
+    q_ref = world.q(task.joint)
+    target = follower.pose_at(q_ref)
+    tick = CONTROL_EVERY * world.model.opt.timestep
+    steps = 0
+    while world.time < end:
+        q = world.q(task.joint)
+        if (q - done_at) * task.sign >= 0:
+            return False
+        if steps % CONTROL_EVERY == 0:
+            q_ref = follower.advance(q, q_ref, tick)
+            target = follower.pose_at(q_ref)
+            drift = float(np.linalg.norm(world.hand_pose()[:3, 3] - follower.pose_at(q)[:3, 3]))
+            if drift > SLIP:
+                off_since = world.time if off_since is None else off_since
+                if world.time - off_since > SLIP_TIME:
+                    return True
+            else:
+                off_since = None
+        world.step(target)
+        steps += 1
+        if steps % CONTROL_EVERY == 0 and world.unstable():
+            return False
+    return False
+
+
+def _finish(
+    world: World,
+    task: TaskAction,
+    arrived: bool,
+    slipped: bool,
+    detail: str,
+    unstable: bool = False,
+    hold: np.ndarray | None = None,
+) -> Outcome:
+    """Let go (at ``hold``, else where the hand is), back off and settle; the joint value
+    after that is the episode's result."""
+    if not unstable:
+        hold = world.hand_pose() if hold is None else hold
+        _run(world, SETTLE, lambda: hold)  # still holding: the part stops with the hand
+        world.set_fingers(world.hand.finger_travel * 2)
+        _run(world, SETTLE, lambda: hold)
+        back = hold.copy()
+        back[:3, 3] -= hold[:3, 2] * RETREAT
+        t0 = world.time
+        _run(world, 2 * SETTLE, lambda: blend(hold, back, (world.time - t0) / SETTLE))
+    q = world.q(task.joint)
+    return Outcome(
+        q if math.isfinite(q) else float("nan"),
+        world.time,
+        arrived,
+        slipped,
+        unstable or world.unstable(),
+        detail,
+    )
+
+
+def _run(world: World, seconds: float, target: Callable[[], np.ndarray]) -> None:
+    end = world.time + seconds
+    goal = target()
+    steps = 0
+    while world.time < end:
+        if steps % CONTROL_EVERY == 0:
+            if world.unstable():
+                return
+            goal = target()
+        world.step(goal)
+        steps += 1
+
+
+def _failure(config: EpisodeConfig, draw: Draw, out: Outcome) -> tuple[str, str]:
+    """The reason a strict failure happened, from what the execution saw."""
+    moved = out.q_final - draw.q_initial
+    sign = 1.0 if config.task == "open" else -1.0
+    if out.unstable:
+        return "timeout", out.detail or "the simulation became unstable"
+    if not out.arrived:
+        return "collision", "the hand was stopped on its way to the grasp"
+    if sign * moved <= -MOVED:
+        return "wrong_direction", f"the joint moved {moved:+.3f} against the task"
+    if out.slipped:
+        return "slip", out.detail or "the hand came off the part while following the path"
+    return "timeout", f"the joint moved {moved:+.3f} and stopped short of the goal"
+
+
+def _early(
+    config: EpisodeConfig,
+    seed: int,
+    task: TaskAction,
+    reason: str,
+    detail: str,
+    started: float,
+    draw: Draw | None = None,
+    inst: Instance | None = None,
+) -> EpisodeRecord:
+    """The record of an episode that never touched the object."""
+    q0 = draw.q_initial if draw is not None else float("nan")
+    q_range = inst.joint_limits()[task.joint] if inst is not None else (float("nan"),) * 2
+    return EpisodeRecord(
+        config=config,
+        seed=seed,
+        joint=task.joint,
+        q_range=(float(q_range[0]), float(q_range[1])),
+        q_initial=q0,
+        q_final=q0,
+        lenient=False,
+        strict=False,
+        reason=reason,
+        detail=detail,
+        params=_jsonable(draw.params) if draw is not None else {},
+        camera=_camera(draw, inst) if draw is not None and inst is not None else {},
+        wall_seconds=time.perf_counter() - started,
+    )
+
+
+def _camera(draw: Draw, inst: Instance) -> dict[str, float]:
+    """The drawn camera with a distance that frames the object (3 times its bounding radius)."""
+    lo, hi = inst.mesh(resolution=16).bounds
+    radius = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))) / 2
+    return {**draw.camera, "distance": round(3.0 * max(radius, 0.05), 4)}
+
+
+def _jsonable(params: dict[str, object]) -> dict[str, object]:
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()}
+
+
+def _check_config(config: EpisodeConfig) -> None:
+    if config.agent != "gripper":
+        raise ParameterError(
+            f"agent {config.agent!r} is not built yet: run_episode drives a flying hand "
+            "(agent='gripper')"
+        )
+    if config.mode != "oracle" or config.engine != "mujoco":
+        raise ParameterError(
+            f"mode {config.mode!r} on engine {config.engine!r}: only mode='oracle' on "
+            "engine='mujoco' runs today"
+        )
+    if config.task not in ("open", "close"):
+        raise ParameterError(f"task must be 'open' or 'close', not {config.task!r}")
+
+
+@lru_cache(maxsize=1)
+def _library() -> Library:
+    """The standard library, compiled once per process (the disk cache makes it quick)."""
+    from grace_dsl.runtime.library import load_library
+
+    return load_library()
