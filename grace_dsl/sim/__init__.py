@@ -1,7 +1,8 @@
 """Physical simulation in MuJoCo: concept instances as scenes, a flying hand, episodes.
 
-``run_episode``, ``Scene`` and ``Camera`` are imported on first use, so that ``grace_dsl.sim.records`` (the contract the
-runner and the report share) stays importable without MuJoCo installed.
+``run_episode``, ``Scene`` and ``Camera`` are imported on first use, so that
+``grace_dsl.sim.records`` (the contract the runner and the report share) stays importable
+without MuJoCo installed.
 """
 
 from __future__ import annotations
