@@ -25,6 +25,7 @@ from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.manipulation import CLEARANCE, Option
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.model import zup_pose
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
     MOVED,
@@ -39,7 +40,7 @@ from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.world import World
 
 # The object's +y (up in a concept) is world +z; its front (+z) faces world +x.
-Z_UP = np.array([[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0, 0, 0, 1]])
+Z_UP = zup_pose(yaw=math.pi / 2)
 BACK_OFF = 0.06  # m the hand starts behind the grasp, beyond the hand's approach distance
 APPROACH_SPEED = 0.25  # m/s along the approach line
 SETTLE = 0.3  # s held at the grasp before closing, and after letting go
