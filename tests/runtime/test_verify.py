@@ -330,9 +330,8 @@ def test_command_line(drawers: Path, capsys: pytest.CaptureFixture[str]) -> None
 
 
 @pytest.mark.slow
-def test_the_standard_library_passes() -> None:
+def test_the_standard_library_passes(lib: eac.Library) -> None:
     """Every concept, 5 draws each (`make verify` runs 200)."""
-    lib = eac.load_library()
     report = verify_library(lib, draws=5, seed=0)
     failed = [(f.concept, f.check, f.member, f.message) for f in report.failures]
     assert report.ok, failed
