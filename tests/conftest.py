@@ -84,3 +84,21 @@ def write(dir_: Path, name: str, text: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return path
+
+
+#: A test that takes longer than this is marked slow (pyproject.toml's markers, make test-fast).
+SLOW_S = 3.0
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # type: ignore[no-untyped-def]
+    """Name the tests over SLOW_S that are not marked slow, so the markers stay honest as tests
+    are added (times on a busy machine are inflated: judge them with the machine's load)."""
+    unmarked = sorted(
+        (r.duration, r.nodeid)
+        for r in terminalreporter.stats.get("passed", [])
+        if r.when == "call" and r.duration > SLOW_S and "slow" not in r.keywords
+    )
+    if unmarked:
+        terminalreporter.write_sep("-", f"{len(unmarked)} tests over {SLOW_S:g} s not marked slow")
+        for duration, nodeid in unmarked[::-1][:15]:
+            terminalreporter.write_line(f"{duration:6.1f}s {nodeid}")
