@@ -17,6 +17,10 @@ from grace_dsl.compiler.resolve import stdlib_dir
 os.environ.setdefault("MUJOCO_GL", "osmesa")  # headless MuJoCo rendering (tests/render)
 
 
+#: The standard library each session loaded, by cache (loaded once: the front end takes seconds).
+_loaded: dict[Path, eac.Library] = {}
+
+
 @pytest.fixture(scope="session")
 def stdlib_front_end():  # type: ignore[no-untyped-def]
     prog, checked, diags = front_end([stdlib_dir()])
@@ -55,8 +59,8 @@ def private_cache(tmp_path_factory: pytest.TempPathFactory, pytestconfig: pytest
         cache = tmp_path_factory.mktemp("grace-cache")
     os.environ["GRACE_CACHE_DIR"] = str(cache)
     if worker:
-        with _build_lock(cache):
-            eac.load_library()  # nearly every test file needs it: compile it once, up front
+        with _build_lock(cache):  # nearly every test file needs it: compile it once, up front
+            _loaded[cache] = eac.load_library(cache / "build")
     return cache
 
 
@@ -65,8 +69,10 @@ def stdlib(private_cache: Path) -> eac.Library:
     """The compiled standard library, loaded once per session (each load_library() call re-runs
     the front end over all of the library's files, seconds each): use this, not a call per
     module or per test."""
-    with _build_lock(private_cache):
-        return eac.load_library(private_cache / "build")  # whatever a test did to the environment
+    if private_cache not in _loaded:
+        with _build_lock(private_cache):  # the cache named here, whatever a test did to the env
+            _loaded[private_cache] = eac.load_library(private_cache / "build")
+    return _loaded[private_cache]
 
 
 @pytest.fixture(scope="session")
