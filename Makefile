@@ -12,12 +12,17 @@ SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 demo: $(STAMP)
 	$(BIN)/grace demo
 
-test: $(STAMP)
-	$(BIN)/python -m pytest
+# one pytest-xdist worker per core; a worker that runs dry steals half of another's queue, so
+# the minute-long tests do not leave a core idle at the end (docs/benchmarks.md, Test suite time)
+PYTEST := $(BIN)/python -m pytest -n auto --dist worksteal
 
-# the local loop: every test not marked slow (> ~3 s; pyproject.toml lists the markers)
+test: $(STAMP)
+	$(PYTEST)
+
+# the local loop: every test not marked slow (> ~3 s; pyproject.toml lists the markers), with
+# the standard library's build kept between runs (a private per-user test cache)
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -m "not slow"
+	$(PYTEST) -m "not slow" --reuse-build-cache
 
 lint: $(STAMP)
 	$(BIN)/ruff check grace_dsl tests bench
@@ -28,7 +33,7 @@ bench: $(STAMP)
 
 # every bench/ script at a tiny size (tests/bench): does each still run?
 bench-smoke: $(STAMP)
-	$(BIN)/python -m pytest -m bench tests/bench
+	$(PYTEST) -m bench tests/bench
 
 # every concept of the standard library, 200 random draws each (docs/benchmarks.md, verification)
 verify: $(STAMP)

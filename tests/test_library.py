@@ -118,11 +118,6 @@ PANDA_MAX_WIDTH = 0.080
 DRAWS = 20
 
 
-@pytest.fixture(scope="session")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def _concepts(lib: eac.Library) -> list[str]:
     return [n for n in lib if lib[n].entry["kind"] != "primitive"]
 

@@ -29,11 +29,6 @@ DOC = ROOT / "docs" / "prompt_catalog.md"
 
 
 @pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
-@pytest.fixture(scope="module")
 def catalog(lib: eac.Library) -> dict[str, Any]:
     return build_catalog(lib)
 

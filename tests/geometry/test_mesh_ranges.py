@@ -33,8 +33,8 @@ def _draw(concept: eac.Concept, rng: np.random.Generator) -> dict[str, object]:
 
 
 @pytest.mark.parametrize("name", sorted(PRIMITIVES))
-def test_mesh_is_a_volume_over_the_whole_range(name: str) -> None:
-    concept = eac.load_library()[name]
+def test_mesh_is_a_volume_over_the_whole_range(name: str, lib: eac.Library) -> None:
+    concept = lib[name]
     rng = np.random.default_rng(sum(map(ord, name)))
     checked = 0
     for _ in range(20 * DRAWS):

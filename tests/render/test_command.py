@@ -49,9 +49,9 @@ def test_show_without_outputs_reports_the_scene(capsys) -> None:
     assert "Pull: 2 links, 4 grasp frames, 2 forces, 1 joint axis" in text
 
 
-def test_show_counts_links_without_shapes(capsys) -> None:
+def test_show_counts_links_without_shapes(capsys, lib) -> None:  # type: ignore[no-untyped-def]
     """SunkenDoor's base has no shapes: it is still a link, and the report says so."""
-    door = eac.load_library()["SunkenDoor"]
+    door = lib["SunkenDoor"]
     assert len(door.links) == 2
     assert main(["show", "SunkenDoor", "--grasps", "1"]) == 0
     out = capsys.readouterr().out

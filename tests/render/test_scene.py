@@ -167,11 +167,6 @@ def _library_concepts() -> list[str]:
     return sorted(n for n, e in prog.concepts.items() if e.decl.kind != "primitive")
 
 
-@pytest.fixture(scope="module")
-def stdlib() -> eac.Library:
-    return eac.load_library()
-
-
 @pytest.mark.parametrize("name", _library_concepts())
 def test_every_library_concept_has_a_scene(stdlib, name: str) -> None:
     inst = stdlib[name].instantiate()

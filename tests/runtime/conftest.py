@@ -40,11 +40,6 @@ concept Poison {
 
 
 @pytest.fixture(scope="session")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
-@pytest.fixture(scope="session")
 def poison(tmp_path_factory: pytest.TempPathFactory) -> eac.Concept:
     path = write(tmp_path_factory.mktemp("poison"), "poison.eac", POISON)
     return eac.compile_paths([path])["Poison"]

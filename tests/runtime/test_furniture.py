@@ -12,15 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-import grace_dsl as eac
 from grace_dsl.export import export_mjcf
 from grace_dsl.runtime.errors import RequirementError
 from grace_dsl.runtime.kinematics import Kinematics
-
-
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()  # furniture.eac is in the standard library
 
 
 @pytest.mark.parametrize("side", ["left", "right"])

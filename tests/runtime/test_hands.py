@@ -288,11 +288,6 @@ def test_a_twist_needs_a_wrist_that_turns(lib: eac.Library) -> None:
         assert not o.feasible and "cannot turn" in " ".join(o.reasons)
 
 
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def test_a_palm_wider_than_the_fingers_cannot_push_low_on_a_front(parts: eac.Library) -> None:
     """The top-down hand pushes a front shut with the side of its fingers; 15 mm above the
     bottom edge its palm, reaching 50 mm beyond the fingers, would be inside the board."""
@@ -397,11 +392,11 @@ def test_eacc_verify_takes_a_hand(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 @pytest.mark.slow
 @pytest.mark.parametrize("hand", ["topdown", "pusher"])
-def test_the_standard_library_verifies_for_every_shipped_hand(hand: str) -> None:
+def test_the_standard_library_verifies_for_every_shipped_hand(hand: str, lib: eac.Library) -> None:
     """`eacc verify --gripper HAND` is clean (the Panda's run is in test_verify.py)."""
     from grace_dsl.runtime.verify import verify_library
 
-    report = verify_library(eac.load_library(), draws=3, seed=0, gripper=Gripper.load(hand))
+    report = verify_library(lib, draws=3, seed=0, gripper=Gripper.load(hand))
     assert report.ok, [(f.concept, f.check, f.member, f.message) for f in report.failures]
     assert report.gripper == hand
 

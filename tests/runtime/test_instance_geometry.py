@@ -15,9 +15,9 @@ CABINET = Path(__file__).resolve().parent.parent / "export" / "cabinet.eac"
 
 
 @pytest.fixture(scope="module")
-def door() -> eac.Instance:
+def door(lib: eac.Library) -> eac.Instance:
     pose = trimesh.transformations.rotation_matrix(0.7, [0.2, 1.0, 0.1], [0.3, -0.2, 0.5])
-    return eac.load_library()["SunkenDoor"].instantiate(pose=pose, joints={"hinge": 0.6})
+    return lib["SunkenDoor"].instantiate(pose=pose, joints={"hinge": 0.6})
 
 
 @pytest.fixture(scope="module")
@@ -64,8 +64,8 @@ def test_samples_lie_on_the_outer_surface(which: str, request: pytest.FixtureReq
     np.testing.assert_array_equal(inst.sample_surface(3000, seed=2), pts)
 
 
-def test_the_mesh_moves_with_the_joints(door: eac.Instance) -> None:
-    closed = eac.load_library()["SunkenDoor"].instantiate(pose=door.pose)
+def test_the_mesh_moves_with_the_joints(door: eac.Instance, lib: eac.Library) -> None:
+    closed = lib["SunkenDoor"].instantiate(pose=door.pose)
     motion = door.link_pose("leaf") @ np.linalg.inv(closed.link_pose("leaf"))
     moved = closed.link_mesh("leaf").apply_transform(motion)
     # a union (manifold3d, float32 vertices): the same solid to ~1e-7 m, in its own triangles

@@ -139,11 +139,6 @@ def test_a_hook_pulls_only_towards_the_wall_on_its_plus_x_side(door: eac.Concept
         assert (float(f @ o.pose[:3, 0]) > 0) == o.feasible
 
 
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def _judge(inst: eac.Instance, action: str, grasp: str) -> Option:
     """One grasp judged for an action, whether or not the action lists it."""
     return judge(inst, inst._action(action), grasp, Gripper.panda(), 8, None)

@@ -10,11 +10,6 @@ from hypothesis import strategies as st
 import grace_dsl as eac
 
 
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def rot(axis: str, a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     m = {
@@ -227,18 +222,14 @@ def test_strict_requirements_are_strict(tmp_path) -> None:  # type: ignore[no-un
         concept.instantiate(a=0.005, b=0.005)
 
 
-def test_a_part_choice_bound_to_an_option_compiles(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_a_part_choice_bound_to_an_option_compiles(tmp_path, lib) -> None:  # type: ignore[no-untyped-def]
     """Binding a part's choice to a written-out option lowers (it crashed in CasADi once)."""
     src = tmp_path / "g.eac"
     src.write_text('use handles.{LeverHandle}\nconcept G { part h = LeverHandle(hand: "right") }\n')
     g = eac.compile_paths([src])["G"]
     assert "h.hand" not in [p.name for p in g.params]
     right = g.instantiate().grasp(next(iter(g.grasps)))
-    left = (
-        eac.load_library()["LeverHandle"]
-        .instantiate(hand="right")
-        .grasp(next(iter(g.grasps)).split(".", 1)[1])
-    )
+    left = lib["LeverHandle"].instantiate(hand="right").grasp(next(iter(g.grasps)).split(".", 1)[1])
     np.testing.assert_allclose(right, left, atol=1e-12)
 
 

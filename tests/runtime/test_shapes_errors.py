@@ -58,10 +58,11 @@ def test_valid_values_of_the_same_concept_still_work(frame: eac.Concept) -> None
     assert inst.sdf(np.zeros((1, 3)))[0] == pytest.approx(0.07, abs=1e-12)  # in the opening
 
 
-def test_the_manifest_gives_each_shape_and_grasp_its_line(frame: eac.Concept) -> None:
+def test_the_manifest_gives_each_shape_and_grasp_its_line(
+    frame: eac.Concept, lib: eac.Library
+) -> None:
     assert [s["where"] for s in frame.entry["shapes"]] == ["frame.eac:8"]
     assert frame.grasps["top"]["where"] == "frame.eac:11"
-    lib = eac.load_library()
     for name in lib:
         for s in lib[name].entry["shapes"]:
             assert re.fullmatch(r"\w+\.eac:\d+", s["where"]), (name, s)

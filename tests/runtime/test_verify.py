@@ -330,12 +330,11 @@ def test_command_line(drawers: Path, capsys: pytest.CaptureFixture[str]) -> None
 
 
 @pytest.mark.slow
-def test_the_standard_library_passes() -> None:
+def test_the_standard_library_passes(stdlib: eac.Library) -> None:
     """Every concept, 5 draws each (`make verify` runs 200)."""
-    lib = eac.load_library()
-    report = verify_library(lib, draws=5, seed=0)
+    report = verify_library(stdlib, draws=5, seed=0)
     failed = [(f.concept, f.check, f.member, f.message) for f in report.failures]
     assert report.ok, failed
     assert all(c.draws == 5 for c in report.concepts)
     # every concept with a grasp had its grasps checked against the part (Plinth and Legs have none)
-    assert all(c.evaluated["near"] > 0 for c in report.concepts if lib[c.concept].grasps)
+    assert all(c.evaluated["near"] > 0 for c in report.concepts if stdlib[c.concept].grasps)
