@@ -1,15 +1,18 @@
 """The furniture fit test: fit the library's board furniture to generated articulated models.
 
 Run: ``.venv/bin/python bench/bench_furniture_fit.py [--n 30] [--seed 0] [--out FILE] [--smoke]``
-(writes bench/results/furniture_fit.json; ``--smoke`` fits 2 models with a small budget).
+(writes bench/results/furniture_fit.json; ``--smoke`` fits 2 models with a small budget;
+``--layouts a,b`` fits only the models of those layouts).
 
 ``bench/furniture_gen.py`` samples models from catalogue ranges and writes them as
 PartNet-Mobility-style directories (``mobility.urdf`` and OBJ meshes) without reading any
-``.eac`` file. For each model whose layout a concept of ``concepts/furniture.eac`` expresses
-(one door: ``BoardCabinet``; three stacked drawers: ``BoardChest3``), the fitter estimates the
-concept's parameters, its joint values and its position (the model is upright and faces +z, as
-the datasets' models do) by minimizing the surface distance in both directions with
-``scipy.optimize.least_squares`` from seeded starts:
+``.eac`` file. Every model is fitted by one concept, ``StorageFurniture`` of
+``concepts/furniture.eac``. Its layout (rows and columns of drawers, number of doors) is read
+off the model's URDF: its prismatic joints are the drawers (their origins' distinct heights the
+rows, their distinct positions across the columns), its revolute joints the doors. The fitter
+then estimates the concept's parameters, its joint values and its position (the model is
+upright and faces +z, as the datasets' models do) by minimizing the surface distance in both
+directions with ``scipy.optimize.least_squares`` from seeded starts:
 
 - real-to-concept: ``Instance.sdf`` at surface samples of the model (at its sampled joint
   values; the model's outer surface: the union of its solids, by manifold3d);
@@ -17,11 +20,13 @@ the datasets' models do) by minimizing the surface distance in both directions w
   piece, so they move smoothly with the parameters), point-to-plane against dense samples of the
   model's surface during the fit, exact (trimesh's closest point) for the figures.
 
-A discrete parameter (the hinge side) is fitted by a short fit per option, the best continued.
-Then every moving part is matched to the concept's joint of the same kind nearest to it: axis
-error (degrees, opening sense included), origin error (mm: for a hinge the distance of the
-model's axis point from the fitted axis line, for a drawer the distance between the two
-fronts' frames), the hinge side. Layouts no fixed-count concept expresses are listed, not fitted.
+The discrete parameters the URDF does not give (plinth or legs, door [0]'s hinge side, a blind
+panel on either side of a single door or none) are enumerated: a short fit per option, the
+best continued. Then every moving part is matched to the concept's joint of the same kind
+nearest to it, among the copies the fitted layout has: axis error (degrees, opening sense
+included), origin error (mm: for a hinge the distance of the model's axis point from the fitted
+axis line, for a drawer the distance between the two fronts' frames), the hinge side (a fitted
+hinge is on the left when its opening axis points down).
 """
 
 from __future__ import annotations
