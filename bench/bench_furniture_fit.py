@@ -265,7 +265,9 @@ class Fit:
         specs = {s.name: s for s in concept.params}
         self.lo: list[float] = []
         self.hi: list[float] = []
-        limits = concept.instantiate(**option).joint_limits()
+        # the joints' ranges (the same at every size), read off an instance of this layout at
+        # a size it admits: a single row of drawers at the default 780 mm would be too tall
+        limits = _limits(concept, option)
         for f in free:
             if f.name == "t":
                 self.lo.append(-np.inf)
@@ -339,6 +341,15 @@ class Fit:
         return np.concatenate([a, b])
 
 
+def _limits(concept: eac.Concept, option: dict[str, Any]) -> dict[str, tuple[float, float]]:
+    for size in ((0.8, 0.45, 0.5), (0.8, 0.78, 0.5), (1.2, 1.3, 0.6)):
+        try:
+            return dict(concept.instantiate(**option, size=size).joint_limits())
+        except eac.GraceError:
+            continue
+    raise eac.GraceError(f"no carcass size admits the layout {option}")
+
+
 def specs_of(concept: eac.Concept) -> set[str]:
     return {s.name for s in concept.params}
 
@@ -394,7 +405,10 @@ def fit_model(
     for option in layout.options():
         fit = Fit(concept, recipe_for(layout, option), option, real)
         for _ in range(starts):
-            res = _solve(fit, _start(fit, first, rng), max(budget // 4, 4))
+            try:
+                res = _solve(fit, _start(fit, first, rng), max(budget // 4, 4))
+            except eac.GraceError:  # the start breaks a require of this option: not this one
+                continue
             if best is None or res.cost < best[0]:
                 best = (res.cost, fit, res)
     assert best is not None
@@ -479,6 +493,26 @@ def summarize(fits: list[dict]) -> dict:
     }
 
 
+def merge(paths: list[Path], out: Path) -> int:
+    """One result from runs over disjoint sets of layouts (same n, seed and budget): each
+    model's fit depends only on the model, so the union is the full run's."""
+    runs = [json.loads(p.read_text()) for p in paths]
+    keys = {(r["n"], r["seed"], r["budget"], r["starts"]) for r in runs}
+    if len(keys) != 1:
+        raise SystemExit(f"the runs differ in n, seed, budget or starts: {sorted(keys)}")
+    fits = [f for r in runs for f in r["fits"]]
+    result = runs[0] | {
+        "command": "bench/bench_furniture_fit.py --merge " + " ".join(map(str, paths)),
+        "summary": summarize(fits),
+        "seconds": sum(r["seconds"] for r in runs),
+        "fits": fits,
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1, default=float) + "\n")
+    print(json.dumps(result["summary"], indent=1))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=30, help="models to generate")
@@ -489,9 +523,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--smoke", action="store_true", help="2 models, a small budget")
     ap.add_argument("--keep", type=Path, help="write the generated models here")
     ap.add_argument("--layouts", help="fit only the models of these layouts (comma-separated)")
+    ap.add_argument(
+        "--merge",
+        type=Path,
+        nargs="+",
+        help="combine the results of runs over parts of the layouts",
+    )
     args = ap.parse_args(argv)
     if args.smoke:
         args.n, args.budget = 2, 12
+    if args.merge:
+        return merge(args.merge, args.out)
     t0 = time.perf_counter()
     lib = eac.compile_paths([FURNITURE])
     models = gen.sample_models(args.n, args.seed)

@@ -1,4 +1,4 @@
-"""Render the gallery pictures of `StorageFurniture`'s layouts (docs/gallery/storage_furniture_*.png).
+"""Render the gallery pictures of `StorageFurniture` (docs/gallery/storage_furniture_*.png).
 
 Run from the repository root: ``.venv/bin/python docs/storage_furniture_gallery.py``. Each layout
 is drawn by ``eacc show --png`` with its parameters and a few fronts opened, so a reader sees the
@@ -21,7 +21,14 @@ LAYOUTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
         {"drawer[1][0].slide": "250mm"},
     ),
     "row3": (
-        {"rows": "1", "cols": "3", "doors": "0", "size": "1100mm,380mm,450mm", "stand": "legs"},
+        {
+            "rows": "1",
+            "cols": "3",
+            "doors": "0",
+            "size": "1100mm,380mm,450mm",
+            "stand": "legs",
+            "tray_depth": "400mm",
+        },
         {"drawer[0][1].slide": "250mm"},
     ),
     "grid2x2": (
@@ -96,8 +103,11 @@ def render(name: str, params: dict[str, str], joints: dict[str, str]) -> Path:
     return out
 
 
-def main() -> int:
-    for name, (params, joints) in LAYOUTS.items():
+def main(argv: list[str] | None = None) -> int:
+    """Render every layout, or only those named on the command line."""
+    names = (sys.argv[1:] if argv is None else argv) or list(LAYOUTS)
+    for name in names:
+        params, joints = LAYOUTS[name]
         print(render(name, params, joints))
     return 0
 
