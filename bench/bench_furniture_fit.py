@@ -187,8 +187,9 @@ def recipe_for(layout: Layout, option: dict[str, Any]) -> tuple[Free, ...]:
 def guess(points: np.ndarray, layout: Layout) -> dict[str, Any]:
     """The box; each drawer's travel from the samples in front of its front (from the URDF's
     joint origin: its middle), less a front and a handle (55 mm); a door's angle from how far
-    the samples reach in front of the carcass (an open leaf of width w stands out by about
-    w sin(q)); a drawer row's height from the top row's origin."""
+    the samples under the drawers (on the door's half, for a pair) reach in front of the
+    carcass (an open leaf of width w stands out by about w sin(q)); a drawer row's height from
+    the top row's origin."""
     g = _box_guess(points)
     size = g["size"]
     top = g["t"][1] + size[1] / 2
@@ -201,8 +202,15 @@ def guess(points: np.ndarray, layout: Layout) -> dict[str, Any]:
         g["drawer_height"] = float(np.clip(2 * (top - 0.003 - y_top), 0.101, 0.399))
     if layout.doors:
         width = size[0] / max(layout.doors, 1) * (0.6 if layout.doors == 1 else 1.0)
-        reach = float(points[:, 2].max()) - g["front_z"]
-        for name in layout.door_names():
+        below = min((p[1] for p in layout.drawer_origins), default=np.inf) - 0.1
+        cx = g["t"][0]
+        for i, name in enumerate(layout.door_names()):
+            # the samples in front of this door's part of the front: under the drawers (which
+            # stand out too), on its half when there are two
+            mine = points[:, 1] < below
+            if layout.doors == 2:
+                mine &= (points[:, 0] < cx) if i == 0 else (points[:, 0] > cx)
+            reach = (float(points[mine, 2].max()) if mine.any() else g["front_z"]) - g["front_z"]
             g[name] = math.asin(float(np.clip(reach / width, 0.02, 1.0)))
     g["tray_depth"] = size[2] - 0.045
     g["blind_width"] = 0.4 * size[0]
