@@ -33,6 +33,8 @@ LAYOUTS = (
     "two_doors",  # a pair of doors hinged at the outer edges
     "drawer_over_door",  # a drawer above a door (kitchen base unit)
     "door_beside_blind",  # a door beside a fixed blind panel
+    "drawers_side",  # two or three drawers side by side in one row
+    "drawers_over_doors",  # two drawers side by side over a pair of doors
 )
 
 
@@ -244,11 +246,13 @@ def sample_model(layout: str, seed: int) -> Model:
     if layout not in LAYOUTS:
         raise ValueError(f"unknown layout {layout!r}; layouts: {', '.join(LAYOUTS)}")
     rng = np.random.default_rng(seed)
-    drawers = layout.startswith("drawers")
+    drawers = layout.startswith("drawers") and layout not in ("drawers_side", "drawers_over_doors")
     w = _u(rng, 0.5, 1.0) if drawers else _u(rng, 0.4, 0.9)
-    if layout in ("two_doors", "door_beside_blind"):
+    if layout in ("two_doors", "door_beside_blind", "drawers_over_doors"):
         w = _u(rng, 0.7, 1.1)
     h = _u(rng, 0.6, 1.0) if drawers else _u(rng, 0.55, 0.9)
+    if layout == "drawers_side":  # a low chest or sideboard: one row of wide drawers
+        w, h = _u(rng, 0.8, 1.2), _u(rng, 0.25, 0.45)
     d = _u(rng, 0.38, 0.58)
     b = _u(rng, 0.015, 0.019)
     legs = layout == "door_beside_blind" or (layout == "drawers4" and rng.random() < 0.5)
@@ -275,8 +279,10 @@ def sample_model(layout: str, seed: int) -> Model:
     top, bottom = y0 + h - gap, y0 + gap
     depth = d - b - _u(rng, 0.015, 0.04)
     travel = depth * _u(rng, 0.6, 0.9)
-    if drawers or layout == "drawer_over_door":
-        handle = _handle(rng, w - 0.1)
+    if drawers or layout in ("drawer_over_door", "drawers_side", "drawers_over_doors"):
+        handle = _handle(
+            rng, (w - 0.1) / {"drawers_side": 3, "drawers_over_doors": 2}.get(layout, 1)
+        )
         params["drawer_handle"] = handle
     if layout == "door" or layout == "door_beside_blind":
         x0, x1 = inner
@@ -313,6 +319,40 @@ def sample_model(layout: str, seed: int) -> Model:
             _drawer(
                 m, f"drawer_{i}", (*inner, y1 - fh, y1), z0, t, depth, b + 0.013, handle, travel
             )
+    elif layout == "drawers_side":
+        n = 2 + int(rng.random() < 0.5)
+        fw = (inner[1] - inner[0] - (n - 1) * gap) / n
+        for i in range(n):
+            x0 = inner[0] + i * (fw + gap)
+            _drawer(
+                m,
+                f"drawer_{i}",
+                (x0, x0 + fw, bottom, top),
+                z0,
+                t,
+                depth,
+                b + 0.013,
+                handle,
+                travel,
+            )
+    elif layout == "drawers_over_doors":
+        fh = _u(rng, 0.12, 0.2)
+        fw = (inner[1] - inner[0] - gap) / 2
+        for i in range(2):
+            x0 = inner[0] + i * (fw + gap)
+            rect = (x0, x0 + fw, top - fh, top)
+            _drawer(m, f"drawer_{i}", rect, z0, t, depth, b + 0.013, handle, travel)
+        dh = _u(rng, 0.096, min(0.32, h - fh - 0.1))
+        dh_ = {"length": dh, "radius": handle["radius"], "standoff": handle["standoff"]}
+        inset = _u(rng, 0.04, 0.07)
+        door_top = top - fh - gap
+        _door(
+            m, "door_l", (inner[0], -gap / 2, bottom, door_top), z0, t, "left", dh_, inset, 0.0, 1.9
+        )
+        _door(
+            m, "door_r", (gap / 2, inner[1], bottom, door_top), z0, t, "right", dh_, inset, 0.0, 1.9
+        )
+        params.update(drawer_height=fh, door_handle=dh_, handle_inset=inset)
     else:  # drawer over door
         fh = _u(rng, 0.12, 0.2)
         _drawer(m, "drawer_0", (*inner, top - fh, top), z0, t, depth, b + 0.013, handle, travel)
@@ -326,9 +366,9 @@ def sample_model(layout: str, seed: int) -> Model:
 
 def sample_models(n: int, seed: int) -> list[Model]:
     """``n`` models cycling through a seeded shuffle of the layouts' mix: the layouts the
-    library's fixed concepts express come up most (door, drawers3), the rest in turn."""
+    library's first fixed concepts expressed come up twice (door, drawers3), the rest once."""
     rng = np.random.default_rng(seed)
-    mix = ["door", "drawers3"] * 3 + list(LAYOUTS[2:])
+    mix = ["door", "drawers3"] * 2 + list(LAYOUTS[2:])
     order = [mix[i % len(mix)] for i in range(n)]
     return [sample_model(layout, int(rng.integers(2**31))) for layout in order]
 

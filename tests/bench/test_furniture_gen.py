@@ -77,3 +77,17 @@ def test_models_are_seeded_and_the_mix_is_fixed() -> None:
     assert [m.layout for m in a][:2] == ["door", "drawers3"]
     with pytest.raises(ValueError, match="layouts"):
         gen.sample_model("wardrobe", 0)
+
+
+def test_side_by_side_layouts_put_drawers_in_one_row() -> None:
+    for layout, doors in (("drawers_side", 0), ("drawers_over_doors", 2)):
+        model = gen.sample_model(layout, seed=11)
+        slides = [j for j in model.joints if j.kind == "prismatic"]
+        hinges = [j for j in model.joints if j.kind == "revolute"]
+        assert len(slides) >= 2 and len(hinges) == doors
+        assert len({round(j.origin[1], 6) for j in slides}) == 1  # one row
+        xs = sorted(j.origin[0] for j in slides)
+        assert all(b - a > 0.2 for a, b in zip(xs, xs[1:]))  # side by side
+        if doors:  # the pair under the drawers, hinged at the outer edges
+            assert sorted(j.hinge for j in hinges) == ["left", "right"]
+            assert max(j.origin[1] for j in hinges) < min(j.origin[1] for j in slides)

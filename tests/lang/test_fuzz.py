@@ -40,6 +40,15 @@ from grace_dsl.lang.diagnostics import Diagnostic, render_all
 
 LIBRARY: dict[str, bytes] = {p.name: p.read_bytes() for p in sorted(stdlib_dir().glob("*.eac"))}
 FILES = sorted(LIBRARY)
+#: file -> the library files that import it (`use MODULE.{...}`)
+USERS: dict[str, tuple[str, ...]] = {
+    name: tuple(
+        f
+        for f in FILES
+        if re.search(rb"^use " + re.escape(name[:-4].encode()) + rb"\.", LIBRARY[f], re.M)
+    )
+    for name in FILES
+}
 
 # Crude tokens: comments, strings, numbers with an optional unit, words, two-character operators
 # and any other single non-blank character.
@@ -73,7 +82,12 @@ def _library_with(name: str | None = None, data: bytes = b"") -> Iterator[Path]:
 
 def _run(target: Path) -> list[Diagnostic]:
     """Resolve + check ``target`` (a file or directory); assert the invariants on the result."""
-    prog, diags = resolve([target])
+    return _run_all([target])
+
+
+def _run_all(targets: list[Path]) -> list[Diagnostic]:
+    """Resolve + check ``targets`` as one program; assert the invariants on the result."""
+    prog, diags = resolve(targets)
     _, more = check(prog)
     everything = diags + more
     texts = prog.sources()
@@ -84,10 +98,11 @@ def _run(target: Path) -> list[Diagnostic]:
 
 
 def front_end(name: str, data: bytes | str) -> list[Diagnostic]:
-    """The library with file ``name`` replaced by ``data``, run as a whole directory."""
+    """The library with file ``name`` replaced by ``data``, run on that file and the library files
+    that ``use`` it (what a damaged module can reach; the rest of the library cannot see it)."""
     raw = data.encode("utf-8") if isinstance(data, str) else data
     with _library_with(name, raw) as root:
-        return _run(root)
+        return _run_all([root / f for f in (name, *USERS[name])])
 
 
 def probe(text: str) -> list[Diagnostic]:
@@ -123,22 +138,31 @@ def _edit(text: str, op: str, i: int, j: int) -> str:
         return text
     a, b = toks[i % len(toks)], toks[j % len(toks)]
     if op == "delete":
-        return text[: a.start()] + text[a.end():]
+        return text[: a.start()] + text[a.end() :]
     if op == "duplicate":
-        return text[: a.end()] + " " + a.group() + text[a.end():]
+        return text[: a.end()] + " " + a.group() + text[a.end() :]
     if op == "replace":
-        return text[: a.start()] + b.group() + text[a.end():]
+        return text[: a.start()] + b.group() + text[a.end() :]
     first, second = sorted((a, b), key=lambda m: m.start())
     if first.start() == second.start():
         return text
-    return (text[: first.start()] + second.group() + text[first.end(): second.start()]
-            + first.group() + text[second.end():])
+    return (
+        text[: first.start()]
+        + second.group()
+        + text[first.end() : second.start()]
+        + first.group()
+        + text[second.end() :]
+    )
 
 
 EDITS = st.lists(
-    st.tuples(st.sampled_from(["delete", "duplicate", "swap", "replace"]),
-              st.integers(0, 10_000), st.integers(0, 10_000)),
-    min_size=1, max_size=4,
+    st.tuples(
+        st.sampled_from(["delete", "duplicate", "swap", "replace"]),
+        st.integers(0, 10_000),
+        st.integers(0, 10_000),
+    ),
+    min_size=1,
+    max_size=4,
 )
 
 
@@ -162,10 +186,26 @@ def test_truncation(name: str, where: float) -> None:
 
 @pytest.mark.slow
 @FUZZ
-@given(name=st.sampled_from(FILES), where=st.floats(0, 1),
-       junk=st.one_of(st.binary(min_size=1, max_size=16),
-                      st.sampled_from([b"\x00", b"\x00" * 8, b"\xff", b"\xc3", b"\xed\xa0\x80",
-                                       b"\xef\xbb\xbf", b"\r", b"\t", b"\x0c"])))
+@given(
+    name=st.sampled_from(FILES),
+    where=st.floats(0, 1),
+    junk=st.one_of(
+        st.binary(min_size=1, max_size=16),
+        st.sampled_from(
+            [
+                b"\x00",
+                b"\x00" * 8,
+                b"\xff",
+                b"\xc3",
+                b"\xed\xa0\x80",
+                b"\xef\xbb\xbf",
+                b"\r",
+                b"\t",
+                b"\x0c",
+            ]
+        ),
+    ),
+)
 def test_random_bytes(name: str, where: float, junk: bytes) -> None:
     data = LIBRARY[name]
     at = int(len(data) * where)
@@ -181,8 +221,22 @@ def test_random_text(name: str, where: float, junk: str) -> None:
     front_end(name, text[:at] + junk + text[at:])
 
 
-HUGE = ["1e400", "1e400mm", "9" * 400, "9" * 400 + "deg", "1" + "0" * 308, "1e308", "1.8e308",
-        "0." + "0" * 400 + "1", "1e-400mm", "4e-324", "0", "0mm", "-0", "1e308m"]
+HUGE = [
+    "1e400",
+    "1e400mm",
+    "9" * 400,
+    "9" * 400 + "deg",
+    "1" + "0" * 308,
+    "1e308",
+    "1.8e308",
+    "0." + "0" * 400 + "1",
+    "1e-400mm",
+    "4e-324",
+    "0",
+    "0mm",
+    "-0",
+    "1e308m",
+]
 
 
 @pytest.mark.slow
@@ -192,7 +246,7 @@ def test_huge_numbers(name: str, which: int, huge: str) -> None:
     text = LIBRARY[name].decode()
     numbers = list(NUMBER_RE.finditer(text))
     m = numbers[which % len(numbers)]
-    front_end(name, text[: m.start()] + huge + text[m.end():])
+    front_end(name, text[: m.start()] + huge + text[m.end() :])
 
 
 # ---- nesting and long lines -----------------------------------------------------------------
@@ -245,11 +299,20 @@ def test_long_lines(kind: str) -> None:
     front_end("handles.eac", _with_let(LONG_LINES[kind]()))
 
 
-@pytest.mark.parametrize("data", [b"", b"\n\n\n", b"\x00", b"\x00" * 1000, b"\xff\xfe\x00c",
-                                  "\ufeff".encode() + LIBRARY["handles.eac"],
-                                  LIBRARY["handles.eac"].replace(b"\n", b"\r\n"),
-                                  LIBRARY["handles.eac"].replace(b"\n", b"\r")],
-                         ids=["empty", "newlines", "nul", "nuls", "utf16", "bom", "crlf", "cr"])
+@pytest.mark.parametrize(
+    "data",
+    [
+        b"",
+        b"\n\n\n",
+        b"\x00",
+        b"\x00" * 1000,
+        b"\xff\xfe\x00c",
+        "\ufeff".encode() + LIBRARY["handles.eac"],
+        LIBRARY["handles.eac"].replace(b"\n", b"\r\n"),
+        LIBRARY["handles.eac"].replace(b"\n", b"\r"),
+    ],
+    ids=["empty", "newlines", "nul", "nuls", "utf16", "bom", "crlf", "cr"],
+)
 def test_odd_files(data: bytes) -> None:
     front_end("handles.eac", data)
 
@@ -332,8 +395,11 @@ def _concept(members: list[str]) -> str:
 
 @pytest.mark.slow
 @settings(FUZZ, max_examples=40)
-@given(chosen=st.lists(st.sampled_from(EXTRA), unique=True, max_size=14),
-       twice=st.lists(st.sampled_from(DUPLICABLE), max_size=2), data=st.randoms())
+@given(
+    chosen=st.lists(st.sampled_from(EXTRA), unique=True, max_size=14),
+    twice=st.lists(st.sampled_from(DUPLICABLE), max_size=2),
+    data=st.randoms(),
+)
 def test_member_combinations(chosen: list[str], twice: list[str], data: Random) -> None:
     members = BASE + chosen + twice
     data.shuffle(members)
@@ -345,8 +411,10 @@ def test_member_combinations(chosen: list[str], twice: list[str], data: Random) 
 
 def test_dropped_parameter_used_later() -> None:
     """A parameter lost to a syntax error (here a `;`) and used afterwards (crashed once)."""
-    diags = probe("concept A {\n    param h : length = 10mm;\n    let area = h * 2\n"
-                  "    require area > 1mm\n}\n")
+    diags = probe(
+        "concept A {\n    param h : length = 10mm;\n    let area = h * 2\n"
+        "    require area > 1mm\n}\n"
+    )
     assert [d.code for d in diags] == ["E001"]
 
 
@@ -358,19 +426,27 @@ def test_bool_literal_is_located() -> None:
 
 def test_free_parameter_range_uses_earlier_free_parameter() -> None:
     """A free parameter's range may not use another free parameter (crashed once with KeyError)."""
-    diags = probe("concept A {\n    param w : length in [1mm, 10mm] = 5mm\n"
-                  "    grasp g(t in [0mm, w], u in [t, 2 * w]) = trans(t, u, 0)\n}\n")
+    diags = probe(
+        "concept A {\n    param w : length in [1mm, 10mm] = 5mm\n"
+        "    grasp g(t in [0mm, w], u in [t, 2 * w]) = trans(t, u, 0)\n}\n"
+    )
     assert [(d.code, d.span.line, d.span.col) for d in diags] == [("E106", 3, 34)]
 
 
 def test_let_using_part_parameter_used_by_another_let() -> None:
     """A let read on demand that uses a part's parameter (crashed once with KeyError 'h')."""
-    assert probe("use handles.{CurveHandle}\nconcept A {\n    part h = CurveHandle()\n"
-                 "    let q = h.r_out\n    let p = q * 2\n}\n") == []
+    assert (
+        probe(
+            "use handles.{CurveHandle}\nconcept A {\n    part h = CurveHandle()\n"
+            "    let q = h.r_out\n    let p = q * 2\n}\n"
+        )
+        == []
+    )
 
 
 def test_duplicate_let_with_computed_value() -> None:
     """A copy-pasted `let` (crashed once in Evaluator.type_of); now only E105."""
-    diags = probe("concept A {\n    param w : length = 100mm\n    let half = w / 2\n"
-                  "    let half = w / 2\n}\n")
+    diags = probe(
+        "concept A {\n    param w : length = 100mm\n    let half = w / 2\n    let half = w / 2\n}\n"
+    )
     assert [d.code for d in diags] == ["E105"]
