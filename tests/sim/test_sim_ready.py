@@ -32,8 +32,10 @@ IMPACT = 5e-3  # m, during a fall in a drawn state
 START_OVERLAPS = {
     "CasementWindow": "the leaf turned about its hinge sweeps into the frame (2.6 mm)",
     "KeyRow": "a pressed key meets the base (1.2 mm)",
+    "Microwave": "the pressed door button sinks into the solid body by its stroke (2.0 mm)",
     "PedalBin": "the step plate meets the base (2.0 mm)",
     "RockerSwitch": "the tilted paddle meets the base (2.9 mm)",
+    "StoveKnob": "the knob pushed in sinks its plunger into the solid base by the push (2.5 mm)",
     "RollerDoor": "the rigid curtain rises into the housing box (8.7 mm at rise 1.67 m)",
     "TiltTurnWindow": "the turned leaf sweeps into the frame (1.9 mm)",
     "Toilet": "the cover opened 86 degrees passes into the tank (116 mm)",
