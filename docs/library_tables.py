@@ -9,8 +9,9 @@ tests/test_library.py keeps the committed page equal to what this script writes.
 
 from __future__ import annotations
 
+import re
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -69,10 +70,27 @@ def _table_row(c: Concept, files: Mapping[str, str]) -> str:
     category = files.get(file, Path(file).stem.replace("_", " "))
     picture = f'<img src="gallery/{c.name}.png" width="160" alt="{c.name}">'
     params = ", ".join(f"`{p.name}` ({_unit(p)})" for p in c.params) or "-"
-    grasps = ", ".join(f"`{g}` ({_grasp_how(e)})" for g, e in c.grasps.items()) or "-"
-    actions = ", ".join(_action_cell(a) for a in c.actions.values()) or "-"
+    grasps = _joined(f"`{g}` ({_grasp_how(e)})" for g, e in c.grasps.items())
+    actions = _joined(_action_cell(a) for a in c.actions.values())
     cells = [c.name, picture, f"{category} (`{file}`)", params, grasps, actions, _para(c.doc)]
     return "| " + " | ".join(_cell(x) for x in cells) + " |"
+
+
+def _joined(cells: Iterable[str]) -> str:
+    """Cells once each after naming repeated copies by index letters (``drawer[0][1].open`` and
+    ``drawer[2][0].open`` are both ``drawer[i][j].open``): a loop's copies are one row entry."""
+    seen = dict.fromkeys(_generic(c) for c in cells)
+    return ", ".join(seen) or "-"
+
+
+def _generic(text: str) -> str:
+    """Each index of a name replaced by a letter for its position: the first i, the second j."""
+
+    def letter(m: re.Match[str]) -> str:
+        depth = text[: m.start()].rsplit("`", 1)[-1].count("[")
+        return "[" + "ijklmn"[depth] + "]"
+
+    return re.sub(r"\[\d+\]", letter, text)
 
 
 def _unit(p: Any) -> str:
