@@ -40,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return demo(Path(args.output))
+        return demo(Path(args.output), episodes=True)
     except GraceError as exc:  # an output directory that cannot be written, say
         error(str(exc))
         return 1
