@@ -258,6 +258,7 @@ class Scene:
         self.rest = {link: np.linalg.inv(self.tree.link_pose(link)) for link in links}
         self.placements = {n: self.tree.placement(n) for n in self.names}
         self._own: dict[str, np.ndarray] = {}  # world -> rest, per link, at the instance's q
+        self._inv: dict[str, np.ndarray] = {}  # each shape's placement inverted
 
     def sdf(
         self, points: list[np.ndarray], qs: np.ndarray | None = None, skip: str | None = None
@@ -278,11 +279,14 @@ class Scene:
             else np.linalg.inv(self._link_poses(link, qs) @ self.rest[link])
             for link in links
         }  # (K, 4, 4) per link: world -> the link's frame at rest (concept frame, q = 0)
+        local = {  # the points in each link's rest frame, shared by the link's shapes
+            link: np.concatenate([p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)])
+            for link, inv in motions.items()
+        }
         best = np.full(sum(sizes), np.inf)
         for name in names:
-            inv = motions[self.tree.shapes[name]["link"]]
-            local = np.concatenate([p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)])
-            best = np.minimum(best, self._shape(name, self.placements[name], local))
+            at = local[self.tree.shapes[name]["link"]]
+            best = np.minimum(best, self._shape(name, self.placements[name], at))
         return np.split(best, np.cumsum(sizes)[:-1])
 
     def _shape(self, name: str, place: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -296,7 +300,9 @@ class Scene:
             if s["primitive"] == "union":
                 return np.min(dists, axis=0)
             return np.maximum(dists[0], -np.min(dists[1:], axis=0))
-        inv = np.linalg.inv(place)
+        inv = self._inv.get(name)  # a shape sits at one place in the scene: invert it once
+        if inv is None:
+            inv = self._inv[name] = np.linalg.inv(place)
         local = points @ inv[:3, :3].T + inv[:3, 3]
         with np.errstate(invalid="ignore", divide="ignore"):
             d = FORMULAS[s["primitive"]](
