@@ -1,8 +1,9 @@
 """Does ``rank`` agree with an independent geometric physics check, for every concept and hand?
 
 Run: ``.venv/bin/python bench/bench_rank_agreement.py [--concepts NAME ...] [--hands NAME ...]
-[--out FILE] [--smoke]``. For every library concept, at two poses (front facing the robot, front
-facing up), every action and every shipped hand, ``inst.rank`` judges each manipulation function.
+[--out FILE] [--smoke] [--merge JSON ...]``. For every library concept, at two poses (front facing
+the robot, front facing up), every action and every shipped hand, ``inst.rank`` judges each
+manipulation function.
 Each option is then checked again here, with code that shares nothing with the ranker's geometry:
 
 - **geometry**: the hand's boxes, sampled on their surfaces every ``SPACING``, at ``APPROACH_STEP``
@@ -20,7 +21,8 @@ Each option is then checked again here, with code that shares nothing with the r
 A feasible option agrees when it passes; a rejected one must carry a reason, and agrees when
 the check also fails at the pose the ranker reports. Prints the table by hand and writes
 bench/results/rank_agreement.json (every disagreement listed). ``--smoke``: three concepts, one
-pose. Exits 1 when a feasible option fails the check.
+pose. ``--merge``: one table from runs over parts of the library (each ``--concepts`` a shard, so
+that the parts run side by side). Exits 1 when a feasible option fails the check.
 """
 
 from __future__ import annotations
@@ -230,9 +232,18 @@ def main() -> int:
     ap.add_argument(
         "--time", action="store_true", help="only time rank (the Panda, front facing the robot)"
     )
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        type=Path,
+        metavar="JSON",
+        help="combine the results of runs over parts of the library (e.g. --concepts in shards)",
+    )
     args = ap.parse_args()
     if args.time:
         return time_rank(args)
+    if args.merge:
+        return merge(args.merge, args.out)
     poses = dict(POSES)
     if args.smoke:
         args.concepts = args.concepts or list(SMOKE)
@@ -299,6 +310,40 @@ def main() -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(summary, indent=1) + "\n")
     print(f"wrote {args.out} in {summary['seconds_total']} s")
+    return 1 if bad or silent else 0
+
+
+def merge(parts: list[Path], out: Path) -> int:
+    """One table and JSON from runs over disjoint sets of concepts (same hands and poses)."""
+    runs = [json.loads(p.read_text()) for p in parts]
+    rows = [r for run in runs for r in run["rows"]]
+    hands = list(runs[0]["hands"])
+    table = summarize(rows, hands)
+    for line in format_table(table):
+        print(line)
+    bad = [r for r in rows if r["feasible"] and r["check"]]
+    silent = [r for r in rows if not r["feasible"] and not r["reasons"]]
+    calls = sum(run["rank_calls"] for run in runs)
+    merged = {
+        "command": " ".join(["bench/bench_rank_agreement.py", *sys.argv[1:]]),
+        "parts": [run["command"] for run in runs],
+        "concepts": len({r["concept"] for r in rows}),
+        "poses": runs[0]["poses"],
+        "hands": table,
+        "feasible_failing_check": bad,
+        "rejected_without_reason": silent,
+        "rank_ms_mean_cpu": round(
+            sum(run["rank_ms_mean_cpu"] * run["rank_calls"] for run in runs) / max(calls, 1), 2
+        ),
+        "rank_calls": calls,
+        "seconds_total": round(sum(run["seconds_total"] for run in runs), 1),
+        "settings": runs[0]["settings"],
+        "machine": runs[0]["machine"],
+        "rows": rows,
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(merged, indent=1) + "\n")
+    print(f"{merged['concepts']} concepts, {calls} rank calls; wrote {out}")
     return 1 if bad or silent else 0
 
 

@@ -171,14 +171,7 @@ def test_open_then_close_moves_the_object_the_right_way(lib: eac.Library, name: 
             assert np.allclose(closed[::-1], opened, atol=1e-7), (name, closing)
 
 
-# Found when rank began to sweep the Panda's whole hand over the approach (a concept defect to
-# fix; strict: the mark fails once it passes).
-_PALM_IN_LID = pytest.mark.xfail(strict=True, reason="open: the palm enters the lid 91 mm")
-
-
-@pytest.mark.parametrize(
-    "name", [pytest.param(n, marks=_PALM_IN_LID) if n == "TopLoadWasher" else n for n in KITCHEN]
-)
+@pytest.mark.parametrize("name", KITCHEN)
 def test_every_action_has_a_feasible_option_for_the_panda(lib: eac.Library, name: str) -> None:
     """At the defaults and half open, the Panda hand can do every action some way; every grasp
     an action names is judged."""

@@ -226,8 +226,25 @@ def swept_box(box: FingerBox, back: np.ndarray, spacing: float) -> np.ndarray:
 # ---- the part at several joint states -----------------------------------------------------------
 
 
+_SCENES: dict[int, tuple[Instance, Scene]] = {}  # a few recent instances' scenes
+SCENE_CACHE = 8
+
+
 class Scene:
     """The signed distance of an instance's shapes, at its own joints or along joint paths."""
+
+    @staticmethod
+    def of(inst: Instance) -> Scene:
+        """The scene of ``inst``, shared by the rank calls on the same instance (an instance
+        never changes; its shapes' arguments are then checked once, not once per call)."""
+        hit = _SCENES.get(id(inst))
+        if hit is not None and hit[0] is inst:
+            return hit[1]
+        scene = Scene(inst)
+        if len(_SCENES) >= SCENE_CACHE:
+            _SCENES.pop(next(iter(_SCENES)))
+        _SCENES[id(inst)] = (inst, scene)
+        return scene
 
     def __init__(self, inst: Instance):
         from grace_dsl.runtime.kinematics import Kinematics
@@ -240,6 +257,8 @@ class Scene:
         links = {self.tree.shapes[n]["link"] for n in self.names}
         self.rest = {link: np.linalg.inv(self.tree.link_pose(link)) for link in links}
         self.placements = {n: self.tree.placement(n) for n in self.names}
+        self._own: dict[str, np.ndarray] = {}  # world -> rest, per link, at the instance's q
+        self._inv: dict[str, np.ndarray] = {}  # each shape's placement inverted
 
     def sdf(
         self, points: list[np.ndarray], qs: np.ndarray | None = None, skip: str | None = None
@@ -253,14 +272,21 @@ class Scene:
         if not names or not sum(sizes):
             return [np.full(s, np.inf) for s in sizes]
         links = {self.tree.shapes[n]["link"] for n in names}
+        own = bool(np.all(qs == self.inst.q))  # every set at the instance's joints
         motions = {
-            link: np.linalg.inv(self._link_poses(link, qs) @ self.rest[link]) for link in links
+            link: np.broadcast_to(self._own_motion(link), (len(qs), 4, 4))
+            if own
+            else np.linalg.inv(self._link_poses(link, qs) @ self.rest[link])
+            for link in links
         }  # (K, 4, 4) per link: world -> the link's frame at rest (concept frame, q = 0)
+        local = {  # the points in each link's rest frame, shared by the link's shapes
+            link: np.concatenate([p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)])
+            for link, inv in motions.items()
+        }
         best = np.full(sum(sizes), np.inf)
         for name in names:
-            inv = motions[self.tree.shapes[name]["link"]]
-            local = np.concatenate([p @ m[:3, :3].T + m[:3, 3] for p, m in zip(points, inv)])
-            best = np.minimum(best, self._shape(name, self.placements[name], local))
+            at = local[self.tree.shapes[name]["link"]]
+            best = np.minimum(best, self._shape(name, self.placements[name], at))
         return np.split(best, np.cumsum(sizes)[:-1])
 
     def _shape(self, name: str, place: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -274,7 +300,9 @@ class Scene:
             if s["primitive"] == "union":
                 return np.min(dists, axis=0)
             return np.maximum(dists[0], -np.min(dists[1:], axis=0))
-        inv = np.linalg.inv(place)
+        inv = self._inv.get(name)  # a shape sits at one place in the scene: invert it once
+        if inv is None:
+            inv = self._inv[name] = np.linalg.inv(place)
         local = points @ inv[:3, :3].T + inv[:3, 3]
         with np.errstate(invalid="ignore", divide="ignore"):
             d = FORMULAS[s["primitive"]](
@@ -306,6 +334,13 @@ class Scene:
             parts = [c.parts[j] for j in np.flatnonzero(m[c.owner])]
             out.append((max(0.0, -float(dk[i])), parts[i]))
         return out
+
+    def _own_motion(self, link: str) -> np.ndarray:
+        """World -> the link's rest frame at the instance's own joints (computed once)."""
+        if link not in self._own:
+            q = self.inst.q[None, :]
+            self._own[link] = np.linalg.inv(self._link_poses(link, q) @ self.rest[link])[0]
+        return self._own[link]
 
     def _link_poses(self, link: str, qs: np.ndarray) -> np.ndarray:
         if qs.shape[1] == 0:  # nothing moves: the same pose at every state

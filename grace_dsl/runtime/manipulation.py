@@ -134,7 +134,7 @@ class _Context:
     @property
     def scene(self) -> Scene:
         if self._scene is None:
-            self._scene = Scene(self.inst)
+            self._scene = Scene.of(self.inst)
         return self._scene
 
 
@@ -169,8 +169,7 @@ def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
     mode = g.mode
     hand = _hand_reasons(inst, name, mode, gripper)
     poses, free, dist = _poses(inst, name, samples, ctx.reference)
-    why = [_contact(inst, ctx.action, mode, p, gripper) for p in poses]
-    force_ok = np.array([w is None for w in why])
+    force_ok, first_why = _contacts(inst, ctx.action, mode, poses, gripper)
     contacts = CONTACTS.get(mode, gripper.push_modes)
     if not contacts:
         hand.append(f"{gripper.name} has nothing to {mode} with")
@@ -183,7 +182,7 @@ def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
     reasons = list(hand)
     if not force_ok.any():
         reasons.append(
-            f"a {mode} contact cannot apply the force of {ctx.action.name} here: {why[0]}"
+            f"a {mode} contact cannot apply the force of {ctx.action.name} here: {first_why}"
         )
     elif best is not None and not best.feasible and not hand:
         reasons += _contact_reasons(verdicts)
@@ -336,6 +335,33 @@ def _poses(
     spins = np.linspace(0.0, 2 * math.pi, SPIN_STEPS, endpoint=False)
     spun = [spin_about(poses, axes.reshape(-1, 3), s) for s in spins]
     return np.concatenate(spun), free * SPIN_STEPS, np.tile(dist, SPIN_STEPS)
+
+
+def _contacts(
+    inst: Instance, action: ActionSpec, mode: str, poses: np.ndarray, gripper: Gripper
+) -> tuple[np.ndarray, str | None]:
+    """Which poses' contacts can apply the action's force, and why the first cannot (None: it
+    can). The forces come from one batched evaluation; a pose where the force is not finite (on
+    a joint's axis: a twist) takes ``_contact``'s exact path, as do the first pose's reasons."""
+    if action.fixed_twist:
+        why = _twist_contact(action, mode, gripper)
+        return np.full(len(poses), why is None), why
+    fn = inst.concept.function("force", action.name)
+    forces = np.asarray(fn.batch(inst.p, inst.q, inst.pose[:3], poses[:, :3, 3]), float)
+    forces = forces.reshape(len(poses), 3)
+    along = np.einsum("ni,ni->n", forces, poses[:, :3, 2])
+    if mode in ("push", "press"):
+        ok = along >= math.cos(CONTACT_CONE)
+    elif mode == "hook":
+        sideways = np.einsum("ni,ni->n", forces, poses[:, :3, 0])
+        ok = (along <= math.cos(CONTACT_CONE)) & (sideways > HOOK_GRIP)
+    else:
+        ok = np.ones(len(poses), bool)
+    odd = np.flatnonzero(~np.isfinite(forces).all(axis=1))
+    for i in odd:
+        ok[i] = _contact(inst, action, mode, poses[i], gripper) is None
+    first = None if ok[0] and 0 not in odd else _contact(inst, action, mode, poses[0], gripper)
+    return ok, first
 
 
 def _contact(
