@@ -35,7 +35,8 @@ UPDATE = os.environ.get("UPDATE_GOLDEN") == "1"
 def _cases() -> list[Path]:
     """Every golden case: top-level .eac files and directories of .eac files."""
     return sorted(
-        p for p in GOLDEN.iterdir()
+        p
+        for p in GOLDEN.iterdir()
         if (p.suffix == ".eac" and p.is_file()) or (p.is_dir() and any(p.rglob("*.eac")))
     )
 
@@ -81,8 +82,11 @@ def test_golden(case: Path) -> None:
         expected_file.write_text(rendered, encoding="utf-8")
     assert expected_file.is_file(), f"missing {expected_file.name}; run with UPDATE_GOLDEN=1"
     expected = expected_file.read_text(encoding="utf-8")
-    diff = "".join(difflib.unified_diff(expected.splitlines(True), rendered.splitlines(True),
-                                        "expected", "actual"))
+    diff = "".join(
+        difflib.unified_diff(
+            expected.splitlines(True), rendered.splitlines(True), "expected", "actual"
+        )
+    )
     assert rendered == expected, f"{case.name} renders differently:\n{diff}"
 
 

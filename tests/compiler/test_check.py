@@ -158,7 +158,9 @@ def test_a_bare_number_as_an_angle_warns(tmp_path: Path) -> None:
     )
     _, checked, diags = front_end([path])
     assert [(d.code, d.severity, d.span.line) for d in diags] == [
-        ("E237", "warning", 3), ("E237", "warning", 4), ("E237", "warning", 5)
+        ("E237", "warning", 3),
+        ("E237", "warning", 4),
+        ("E237", "warning", 5),
     ]
     assert "5156.62 degrees" in diags[0].message and "`90deg`" in (diags[0].hint or "")
     assert checked.concepts["T"].ok  # a warning does not fail the concept

@@ -29,6 +29,7 @@ def close(got: object, ref: object) -> None:
     """Agreement to RTOL/ATOL; NaN must appear exactly where CasADi has NaN."""
     np.testing.assert_allclose(np.asarray(got), np.asarray(ref), rtol=RTOL, atol=ATOL)
 
+
 x, y = ca.SX.sym("x"), ca.SX.sym("y")
 v = ca.SX.sym("v", 3)
 m = ca.SX.sym("m", 2, 3)
@@ -41,31 +42,90 @@ def _pos(e: ca.SX) -> ca.SX:
 
 OP_FUNCTIONS: dict[str, ca.Function] = {
     "arith": ca.Function(
-        "arith", [x, y],
-        [ca.vertcat(x + y, x - y, x * y, x / _pos(y), -x, x**2, 2 * x, 1 / _pos(x),
-                    _pos(x) ** y, _pos(x) ** 3.5, ca.sqrt(_pos(x)), ca.exp(x), ca.log(_pos(y)))]),
+        "arith",
+        [x, y],
+        [
+            ca.vertcat(
+                x + y,
+                x - y,
+                x * y,
+                x / _pos(y),
+                -x,
+                x**2,
+                2 * x,
+                1 / _pos(x),
+                _pos(x) ** y,
+                _pos(x) ** 3.5,
+                ca.sqrt(_pos(x)),
+                ca.exp(x),
+                ca.log(_pos(y)),
+            )
+        ],
+    ),
     "trig": ca.Function(
-        "trig", [x, y],
-        [ca.vertcat(ca.sin(x), ca.cos(y), ca.tan(x / 2), ca.asin(x / 4), ca.acos(y / 4),
-                    ca.atan(x), ca.atan2(x, y))]),
+        "trig",
+        [x, y],
+        [
+            ca.vertcat(
+                ca.sin(x),
+                ca.cos(y),
+                ca.tan(x / 2),
+                ca.asin(x / 4),
+                ca.acos(y / 4),
+                ca.atan(x),
+                ca.atan2(x, y),
+            )
+        ],
+    ),
     "misc": ca.Function(
-        "misc", [x, y],
-        [ca.vertcat(ca.fabs(x), ca.fmin(x, y), ca.fmax(x, y), ca.floor(x), ca.ceil(y),
-                    ca.sign(ca.floor(x)), ca.sinh(x), ca.cosh(y), ca.tanh(x), ca.asinh(y),
-                    ca.acosh(_pos(x)), ca.atanh(y / 4), ca.erf(x), ca.fmod(x, _pos(y)),
-                    ca.remainder(x, _pos(y)), ca.copysign(x, y), ca.hypot(x, y),
-                    ca.log1p(_pos(x)), ca.expm1(y))]),
+        "misc",
+        [x, y],
+        [
+            ca.vertcat(
+                ca.fabs(x),
+                ca.fmin(x, y),
+                ca.fmax(x, y),
+                ca.floor(x),
+                ca.ceil(y),
+                ca.sign(ca.floor(x)),
+                ca.sinh(x),
+                ca.cosh(y),
+                ca.tanh(x),
+                ca.asinh(y),
+                ca.acosh(_pos(x)),
+                ca.atanh(y / 4),
+                ca.erf(x),
+                ca.fmod(x, _pos(y)),
+                ca.remainder(x, _pos(y)),
+                ca.copysign(x, y),
+                ca.hypot(x, y),
+                ca.log1p(_pos(x)),
+                ca.expm1(y),
+            )
+        ],
+    ),
     "logic": ca.Function(
-        "logic", [x, y],
-        [ca.vertcat(ca.if_else(x < y, ca.sin(x), ca.cos(y)), x <= y,
-                    ca.floor(x) == ca.floor(y), ca.floor(x) != ca.floor(y),
-                    ca.logic_and(x > 0, y > 0), ca.logic_or(x > 0, y > 0),
-                    ca.logic_not(ca.floor(x)), ca.if_else(x >= 0, x, -2 * x, True))]),
+        "logic",
+        [x, y],
+        [
+            ca.vertcat(
+                ca.if_else(x < y, ca.sin(x), ca.cos(y)),
+                x <= y,
+                ca.floor(x) == ca.floor(y),
+                ca.floor(x) != ca.floor(y),
+                ca.logic_and(x > 0, y > 0),
+                ca.logic_or(x > 0, y > 0),
+                ca.logic_not(ca.floor(x)),
+                ca.if_else(x >= 0, x, -2 * x, True),
+            )
+        ],
+    ),
     # vector, matrix and sparse inputs; several outputs, one of them sparse with a constant
     "shapes": ca.Function(
-        "shapes", [v, m, low, x],
-        [ca.mtimes(m, v) * x, ca.diag(ca.sin(v)), ca.sum1(ca.sum2(low)) + 3.0,
-         ca.mtimes(low, v).T]),
+        "shapes",
+        [v, m, low, x],
+        [ca.mtimes(m, v) * x, ca.diag(ca.sin(v)), ca.sum1(ca.sum2(low)) + 3.0, ca.mtimes(low, v).T],
+    ),
 }
 
 
@@ -200,15 +260,19 @@ def test_single_call_is_thread_safe(evaluators: dict) -> None:
     refs = [casadi_eval(fn, [t, 0.1])[0] for t in thetas]
 
     def work(i: int) -> bool:
-        return all(np.allclose(np.asarray(ev(thetas[j], 0.1)), refs[j], rtol=RTOL, atol=ATOL)
-                   for j in range(i % 4, len(thetas), 4) for _ in range(20))
+        return all(
+            np.allclose(np.asarray(ev(thetas[j], 0.1)), refs[j], rtol=RTOL, atol=ATOL)
+            for j in range(i % 4, len(thetas), 4)
+            for _ in range(20)
+        )
 
     with ThreadPoolExecutor(4) as pool:
         assert all(pool.map(work, range(8)))
 
 
-def test_second_build_hits_the_cache(evaluators: dict, cache: Path,
-                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_second_build_hits_the_cache(
+    evaluators: dict, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     libs = list(cache.glob("*.so"))
     assert len(libs) == 1
     mtime = libs[0].stat().st_mtime_ns
@@ -232,7 +296,8 @@ def test_stale_library_is_rejected(evaluators: dict, cache: Path) -> None:
 
 @pytest.mark.parametrize("disable", ["missing_cc", "flag"])
 def test_fallback_without_compiler_gives_identical_results(
-        disable: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    disable: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     if disable == "missing_cc":
         monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     fn = FUNCTIONS["shapes"]
@@ -284,8 +349,9 @@ def test_concurrent_builds_leave_a_valid_library(tmp_path: Path) -> None:
     path = tmp_path / "same.so"
     assert results == [path, path]
     assert [p.name for p in tmp_path.iterdir()] == ["same.so"]  # no temp files left behind
-    ev = native.NativeFunction(FUNCTIONS["trig"], (ctypes.PyDLL(str(path)), ctypes.CDLL(str(path))),
-                               "trig")
+    ev = native.NativeFunction(
+        FUNCTIONS["trig"], (ctypes.PyDLL(str(path)), ctypes.CDLL(str(path))), "trig"
+    )
     close(ev(0.3, 0.2), casadi_eval(FUNCTIONS["trig"], [0.3, 0.2])[0])
 
 
