@@ -473,6 +473,9 @@ def test_ctrl_c_stops_a_build_promptly(tmp_path: Path) -> None:
         env=subprocess_env(cache_root),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        # a pytest-xdist worker ignores SIGINT, and an ignored signal stays ignored in a child:
+        # give the build the default disposition, as in a terminal
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     tmp_root = cache_root / "build" / "tmp"
     deadline = time.monotonic() + 120

@@ -173,8 +173,10 @@ def test_mjcf_loads_in_mujoco_with_native_geoms_only_where_exact(
     path = tmp_path / "new_shapes.xml"
     export_mjcf(inst, path)
     mj = mujoco.MjModel.from_xml_path(str(path))
-    kinds = sorted(mujoco.mjtGeom(int(t)).name for t in mj.geom_type)
+    visual = mj.geom_group == 2  # the pieces whole; group 3 holds their convex collision pieces
+    kinds = sorted(mujoco.mjtGeom(int(t)).name for t in mj.geom_type[visual])
     assert kinds == ["mjGEOM_BOX"] + ["mjGEOM_MESH"] * 4 + ["mjGEOM_SPHERE"]
+    assert (mj.geom_group == 3).sum() >= len(kinds)  # every piece collides as one or more
     # the bodies' masses come from the exported solids: density times the analytic volumes
     density = ExportOptions().density
     total = sum(volume(name, params) for name, params, _ in SHAPES)
