@@ -67,6 +67,8 @@ class World:
             for body in root.iter("body"):
                 body.set("gravcomp", "1")
         for geom in root.iter("geom"):
+            if geom.get("contype") == "0" and geom.get("conaffinity") == "0":
+                continue  # a visual geom (the export's whole pieces): it collides with nothing
             geom.set("contype", str(OBJECT_GROUP))
             geom.set("conaffinity", str(HAND_GROUP))
         spec, assets, body, actuators = build_hand(gripper, hand_pose, GRASP_FORCE)

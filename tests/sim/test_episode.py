@@ -72,3 +72,25 @@ def test_hands_built_from_their_descriptions() -> None:
     assert np.allclose(panda.hand_pose()[:3, 3], away[:3, 3], atol=1e-3)  # it floats in place
     pusher = World.build(inst, Gripper.load("pusher"), away)
     assert pusher.hand.fingers == () and pusher.model.nu == 0  # a hand that cannot close
+
+
+def test_the_object_collides_through_its_convex_pieces_only(lib) -> None:  # type: ignore[no-untyped-def]
+    """The export's whole visual pieces (a window frame's ring, whose hull is a solid block)
+    touch nothing; the hand meets the object's convex collision pieces. Before, the world made
+    every object geom collide and the hand stopped at a sliding window's frame hull."""
+    import numpy as np
+
+    from grace_dsl.runtime.gripper import Gripper
+    from grace_dsl.sim.episode import Z_UP
+    from grace_dsl.sim.world import World
+
+    away = np.eye(4)
+    away[:3, 3] = (1.0, 0.0, 1.0)
+    world = World.build(lib["SlidingWindow"].instantiate(pose=Z_UP), Gripper.panda(), away)
+    m = world.model
+    hand = {m.body(n).id for n in range(m.nbody) if m.body(n).name.startswith("hand")}
+    on_object = np.array([m.geom_bodyid[g] not in hand for g in range(m.ngeom)])
+    visual, pieces = on_object & (m.geom_group == 2), on_object & (m.geom_group == 3)
+    assert visual.any() and pieces.any()
+    assert not (m.geom_contype[visual] | m.geom_conaffinity[visual]).any()
+    assert (m.geom_conaffinity[pieces] > 0).all()
