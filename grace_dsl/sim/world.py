@@ -6,10 +6,13 @@ joints' ranges already keep the parts where they belong, and the export's collis
 still overlap at rest (a carcass exported as a solid block around its drawer). The hand collides
 with every part of the object.
 
-The parts are balanced against gravity by default: the exported joints carry little friction,
-so a bottom-hinged oven door would fall open and a lid fall shut before the hand arrives, where
-the real ones are held by a counterbalance spring or a friction hinge. The protocol places the
-joint where it starts, and the part stays there until the hand moves it.
+The parts are balanced against gravity by default (gravity compensation on the object's bodies):
+a bottom-hinged oven door would otherwise fall open and a lid fall shut before the hand arrives,
+where the real ones are held by a counterbalance spring or a friction hinge. The protocol places
+the joint where it starts, and the part stays there until the hand moves it. The export holds a
+closed part shut by a friction loss sized to gravity's pull; balanced, that friction would only
+resist the hand (an oven door then opened past half its range in 65% of episodes, not 100%), so
+the world gives every object joint the export's base friction instead.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import mujoco
 import numpy as np
 
 from grace_dsl.export.mjcf import write_mjcf
-from grace_dsl.export.model import build_model
+from grace_dsl.export.model import FRICTION, build_model
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.sim.control import Impedance, quat_of
@@ -66,6 +69,8 @@ class World:
         if balanced:  # a real door or lid is counterbalanced or held by a friction hinge
             for body in root.iter("body"):
                 body.set("gravcomp", "1")
+            for joint in root.iter("joint"):  # no gravity to hold against: a hinge's own friction
+                joint.set("frictionloss", str(FRICTION))
         for geom in root.iter("geom"):
             if geom.get("contype") == "0" and geom.get("conaffinity") == "0":
                 continue  # a visual geom (the export's whole pieces): it collides with nothing
