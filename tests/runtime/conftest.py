@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 import grace_dsl as eac
@@ -43,3 +45,42 @@ concept Poison {
 def poison(tmp_path_factory: pytest.TempPathFactory) -> eac.Concept:
     path = write(tmp_path_factory.mktemp("poison"), "poison.eac", POISON)
     return eac.compile_paths([path])["Poison"]
+
+
+# A stack of n drawers with a bar or ring handle each: one compiled unit for every count, shared by
+# the tests of repeated members (test_repeat_runtime.py) and of masked listings (test_masks.py).
+STACK = """use primitives.{Cuboid}
+use handles.{StraightHandle, RingPull}
+
+concept Stack {
+    param n : int in [1, 4] = 3
+    param kind : choice{"bar", "ring"} = "bar"
+    param h : length in [100mm, 200mm] = 150mm
+    shape body = Cuboid(size: (400mm, 4 * h, 300mm))
+    for i in 0..n {
+        require (i + 1) * h <= 650mm "the drawer fits in the carcass"
+        link drawer[i] {
+            shape front[i] = Cuboid(size: (380mm, h - 10mm, 18mm)) at trans(0, i * h, 160mm)
+            part handle[i] = match kind {
+                "bar" => StraightHandle(standoff: 32mm),
+                "ring" => RingPull()
+            } at trans(0, i * h, 200mm)
+        }
+        joint slide[i] : prismatic(base -> drawer[i]) axis (0, 0, 1) range [0, 250mm]
+        action open[i] = pull along slide[i] using handle[i].pull
+    }
+}
+"""
+
+
+@pytest.fixture(scope="session")
+def stack(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """``Stack`` compiled once (CasADi's VM, no C): the tests that use it are marked slow."""
+    from grace_dsl.compiler.build import build
+    from grace_dsl.runtime.library import Library
+
+    root = tmp_path_factory.mktemp("stack")
+    (root / "stack.eac").write_text(STACK, encoding="utf-8")
+    result = build([root / "stack.eac"], root / "cache", use_native=False)
+    assert result.ok, result.diagnostics
+    return Library(result.units, result)["Stack"]

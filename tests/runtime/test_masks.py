@@ -10,44 +10,10 @@ from typing import Any
 import pytest
 
 from grace_dsl.cli.show_cmd import _subtitle
-from grace_dsl.compiler.build import build
 from grace_dsl.runtime.errors import RequirementError, UnknownNameError
-from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.verify import _si
 
-SOURCE = """use primitives.{Cuboid}
-use handles.{StraightHandle, RingPull}
-
-concept Stack {
-    param n : int in [1, 4] = 2
-    param kind : choice{"bar", "ring"} = "bar"
-    param h : length in [100mm, 200mm] = 150mm
-    shape body = Cuboid(size: (400mm, 4 * h, 300mm))
-    for i in 0..n {
-        require (i + 1) * h <= 450mm "the drawer fits in the carcass"
-        link drawer[i] {
-            shape front[i] = Cuboid(size: (380mm, h - 10mm, 18mm)) at trans(0, i * h, 160mm)
-            part handle[i] = match kind {
-                "bar" => StraightHandle(standoff: 32mm),
-                "ring" => RingPull()
-            } at trans(0, i * h, 200mm)
-        }
-        joint slide[i] : prismatic(base -> drawer[i]) axis (0, 0, 1) range [0, 250mm]
-        action open[i] = pull along slide[i] using handle[i].pull
-    }
-}
-"""
-
-pytestmark = pytest.mark.slow  # one compile of the unit (CasADi's VM, no C) for the module
-
-
-@pytest.fixture(scope="module")
-def stack(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    root = tmp_path_factory.mktemp("masks")
-    (root / "stack.eac").write_text(SOURCE, encoding="utf-8")
-    result = build([root / "stack.eac"], root / "cache", use_native=False)
-    assert result.ok, result.diagnostics
-    return Library(result.units, result)["Stack"]
+pytestmark = pytest.mark.slow  # the `stack` fixture compiles a unit (tests/runtime/conftest.py)
 
 
 def test_joints_and_limits_list_only_present_copies(stack: Any) -> None:
@@ -89,8 +55,8 @@ def test_reports_show_only_present_joints(stack: Any) -> None:
 
 
 def test_a_copys_requirement_binds_only_when_it_exists(stack: Any) -> None:
-    # three drawers of 200 mm do not fit under 450 mm, two do: the third copy's requirement
-    # is what fails, and it is absent at n = 2
-    assert stack.instantiate(n=2, h=0.2).count("drawer") == 2
+    # four drawers of 200 mm do not fit under 650 mm, three do: the fourth copy's requirement
+    # is what fails, and it is absent at n = 3
+    assert stack.instantiate(n=3, h=0.2).count("drawer") == 3
     with pytest.raises(RequirementError, match="the drawer fits in the carcass"):
-        stack.instantiate(n=3, h=0.2)
+        stack.instantiate(n=4, h=0.2)

@@ -19,38 +19,7 @@ from grace_dsl.export.model import build_model
 from grace_dsl.runtime.errors import ParameterError, UnknownNameError
 from grace_dsl.runtime.library import Library
 
-SOURCE = """use primitives.{Cuboid}
-use handles.{StraightHandle, RingPull}
-
-concept Stack {
-    param n : int in [1, 4] = 3
-    param kind : choice{"bar", "ring"} = "bar"
-    param h : length in [100mm, 200mm] = 150mm
-    shape body = Cuboid(size: (400mm, 4 * h, 300mm))
-    for i in 0..n {
-        link drawer[i] {
-            shape front[i] = Cuboid(size: (380mm, h - 10mm, 18mm)) at trans(0, i * h, 160mm)
-            part handle[i] = match kind {
-                "bar" => StraightHandle(standoff: 32mm),
-                "ring" => RingPull()
-            } at trans(0, i * h, 200mm)
-        }
-        joint slide[i] : prismatic(base -> drawer[i]) axis (0, 0, 1) range [0, 250mm]
-        action open[i] = pull along slide[i] using handle[i].pull
-    }
-}
-"""
-
-pytestmark = pytest.mark.slow  # one compile of the unit (CasADi's VM, no C) for the module
-
-
-@pytest.fixture(scope="module")
-def stack(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    root = tmp_path_factory.mktemp("stack")
-    (root / "stack.eac").write_text(SOURCE, encoding="utf-8")
-    result = build([root / "stack.eac"], root / "cache", use_native=False)
-    assert result.ok, result.diagnostics
-    return Library(result.units, result)["Stack"]
+pytestmark = pytest.mark.slow  # the `stack` fixture compiles a unit (tests/runtime/conftest.py)
 
 
 def test_count_and_indices(stack: Any) -> None:
