@@ -25,16 +25,6 @@ RECHECK = 0.004  # radians between re-checked configurations: finer than the pla
 
 
 @pytest.fixture(scope="module")
-def panda() -> Robot:
-    return eac.Robot.panda()
-
-
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
-@pytest.fixture(scope="module")
 def door_plan(panda: Robot, lib):  # type: ignore[no-untyped-def]
     door = lib["SunkenDoor"].instantiate(pose=facing(0.7, 0.0, 0.45))
     return door, plan_action(panda, door, "open", to=0.6)

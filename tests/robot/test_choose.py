@@ -11,16 +11,6 @@ from grace_dsl.robot.model import Robot
 from tests.robot.test_grasp_ik import facing
 
 
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return eac.Robot.panda()
-
-
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def test_the_choice_is_reachable_feasible_and_explained(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
     door = lib["SunkenDoor"].instantiate(pose=facing(0.7, 0.0, 0.45))
     choice = choose_grasp(panda, door, "close")

@@ -12,11 +12,6 @@ from grace_dsl.robot.model import Robot
 
 
 @pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
-
-
-@pytest.fixture(scope="module")
 def drawer() -> eac.Concept:
     return eac.load_library()["CabinetDrawer"]
 

@@ -18,16 +18,6 @@ from tests.robot.test_model import urdf_chain_fk
 FACING_ROBOT = np.column_stack([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])
 
 
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
-
-
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def facing(x: float, y: float, z: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] = FACING_ROBOT

@@ -13,11 +13,6 @@ from grace_dsl.robot.model import Robot
 from tests.robot.test_model import urdf_chain_fk
 
 
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
-
-
 def _errors(pose: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     cos = (np.trace(target[:3, :3].T @ pose[:3, :3]) - 1) / 2
     return float(np.linalg.norm(pose[:3, 3] - target[:3, 3])), math.acos(min(1.0, max(-1.0, cos)))

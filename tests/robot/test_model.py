@@ -13,11 +13,6 @@ import grace_dsl as eac
 from grace_dsl.robot.model import Robot, robot_data_file
 
 
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
-
-
 def _origin(joint: ET.Element) -> np.ndarray:
     origin = joint.find("origin")
     attrs = origin.attrib if origin is not None else {}

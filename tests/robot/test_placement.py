@@ -23,16 +23,6 @@ from grace_dsl.robot.placement import (
 from tests.robot.test_grasp_ik import facing
 
 
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return eac.Robot.panda()
-
-
-@pytest.fixture(scope="module")
-def lib() -> eac.Library:
-    return eac.load_library()
-
-
 def test_placements_are_seeded_deterministic_and_face_the_grasps(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
     inst = default_instance(panda, lib["Oven"], "open")
     start = base_pose(0.02, -0.01, 0.1)

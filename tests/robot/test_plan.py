@@ -12,11 +12,6 @@ from grace_dsl.robot.plan import PlanningError, plan_path, segment_free, time_pa
 
 
 @pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
-
-
-@pytest.fixture(scope="module")
 def blocked(panda: Robot):  # type: ignore[no-untyped-def]
     """A drawer in front of the robot, between two swings of the first joint."""
     pose = np.eye(4)

@@ -3,15 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from grace_dsl.robot.model import Robot
 from grace_dsl.robot.seeds import ROTATION_WEIGHT, build_bank, seed_bank
-
-
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return Robot.panda()
 
 
 def test_bank_entries_are_within_limits_and_start_with_home(panda: Robot) -> None:
