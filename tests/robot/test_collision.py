@@ -12,8 +12,8 @@ from grace_dsl.robot.model import Robot
 
 
 @pytest.fixture(scope="module")
-def drawer() -> eac.Concept:
-    return eac.load_library()["CabinetDrawer"]
+def drawer(lib: eac.Library) -> eac.Concept:
+    return lib["CabinetDrawer"]
 
 
 def _at(xyz: tuple[float, float, float]) -> np.ndarray:
@@ -95,11 +95,11 @@ def test_placing_the_object_equals_building_it_there(panda: Robot, drawer) -> No
     assert len(set(np.round(gaps, 4))) == 3  # the drawer did move
 
 
-def test_held_link_may_be_pressed_only_within_the_allowance(panda: Robot) -> None:
+def test_held_link_may_be_pressed_only_within_the_allowance(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
     from grace_dsl.robot.choose import choose_grasp
     from tests.robot.test_grasp_ik import facing
 
-    door = eac.load_library()["SunkenDoor"]
+    door = lib["SunkenDoor"]
     choice = choose_grasp(panda, door.instantiate(pose=facing(0.7, 0.0, 0.45)), "open")
     fingers = [("panda_leftfinger", "leaf"), ("panda_rightfinger", "leaf")]
     approach = choice.ik.grasp_pose[:3, 2]

@@ -12,11 +12,11 @@ from grace_dsl.robot.plan import PlanningError, plan_path, segment_free, time_pa
 
 
 @pytest.fixture(scope="module")
-def blocked(panda: Robot):  # type: ignore[no-untyped-def]
+def blocked(panda: Robot, lib):  # type: ignore[no-untyped-def]
     """A drawer in front of the robot, between two swings of the first joint."""
     pose = np.eye(4)
     pose[:3, 3] = (0.4, 0.0, 0.45)
-    scene = collision_scene(panda, eac.load_library()["CabinetDrawer"].instantiate(pose=pose))
+    scene = collision_scene(panda, lib["CabinetDrawer"].instantiate(pose=pose))
     start, goal = panda.home.copy(), panda.home.copy()
     start[0], goal[0] = -1.2, 1.2
     assert not segment_free(scene, start, goal, 0.01)  # the straight swing hits the drawer
@@ -43,12 +43,12 @@ def test_a_free_straight_segment_needs_no_planner(panda: Robot) -> None:
     assert path.shape == (2, 7)
 
 
-def test_a_start_in_collision_is_refused(panda: Robot, blocked) -> None:  # type: ignore[no-untyped-def]
+def test_a_start_in_collision_is_refused(panda: Robot, blocked, lib) -> None:  # type: ignore[no-untyped-def]
     scene, _, goal = blocked
     tcp = panda.fk(panda.home)[:3, 3]
     pose = np.eye(4)
     pose[:3, 3] = tcp
-    inside = collision_scene(panda, eac.load_library()["CabinetDrawer"].instantiate(pose=pose))
+    inside = collision_scene(panda, lib["CabinetDrawer"].instantiate(pose=pose))
     with pytest.raises(PlanningError, match="start configuration is in collision"):
         plan_path(inside, panda.home, goal)
     assert issubclass(PlanningError, eac.GraceError)
