@@ -11,7 +11,7 @@ import pytest
 from grace_dsl.agent.catalog import build_catalog, render_markdown
 from grace_dsl.compiler.build import build
 from grace_dsl.runtime.library import Library
-from tests.runtime.test_repeat_runtime import SOURCE
+from tests.runtime.conftest import STACK as SOURCE
 
 pytestmark = pytest.mark.slow  # one compile (CasADi's VM, no C)
 
