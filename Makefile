@@ -68,7 +68,7 @@ $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,sim,plan]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,sim,plan,learn,ray,vlm]'
 	@touch $(STAMP)
 
 clean:
