@@ -70,7 +70,7 @@ class ObjectNode:
     name: str
     concept: str
     parts: tuple[str, ...] = ()
-    relations: tuple[tuple[str, str], ...] = ()  # (relation, other object), e.g. ("left_of", "fridge")
+    relations: tuple[tuple[str, str], ...] = ()  # (relation, other), e.g. ("left_of", "fridge")
 
 
 @dataclass(frozen=True)
