@@ -34,9 +34,9 @@ from pathlib import Path
 from typing import Any
 
 from grace_dsl.cache import build_dir, existing_private_dir, private_dir, untrusted_reason
-from grace_dsl.compiler import native
+from grace_dsl.compiler import memo, native
 from grace_dsl.compiler.check import Checked, check
-from grace_dsl.compiler.resolve import Program, resolve
+from grace_dsl.compiler.resolve import Program, resolve, search_dirs
 from grace_dsl.compiler.unit import (
     UNIT_FORMAT,
     Unit,
@@ -103,13 +103,25 @@ def build(
     search_path: Sequence[str | Path] = (),
     use_native: bool = True,
     progress: Progress | None = None,
+    reuse_front_end: bool = False,
 ) -> BuildResult:
-    """Compile ``paths`` and everything they import into cached units."""
+    """Compile ``paths`` and everything they import into cached units.
+
+    With ``reuse_front_end`` a warning-free earlier build of the same request whose files and
+    imports are unchanged is loaded without parsing and checking again (``compiler.memo``);
+    callers that show diagnostics leave it off."""
+    root = cache_dir or default_cache_dir()
+    search = search_dirs(search_path)
+    memo_key = memo.request_key(paths, search, _build_seed(use_native))
+    if reuse_front_end:
+        recalled = _recall(root, memo_key, paths, search)
+        if recalled is not None:
+            return recalled
     prog, checked, diags = front_end(paths, search_path)
     result = BuildResult(diags, prog.sources())
     if not result.ok:
         return result
-    store = _Store.open(cache_dir or default_cache_dir(), result.diagnostics)
+    store = _Store.open(root, result.diagnostics)
     keys = _unit_keys(prog, use_native)
     files = [f for f in prog.files if _concepts_of(prog, f)]
     found = {f: store.find(keys[f]) for f in files}
@@ -130,7 +142,34 @@ def build(
             found[f] = load_unit(target / "units" / keys[f])
     result.rebuilt = missing
     result.units = [u for u in found.values() if u is not None]
+    if not result.diagnostics and store.write is not None and len(result.units) == len(files):
+        memo.record(store.write / "memo", memo_key, prog, keys, files)
     return result
+
+
+def _recall(
+    root: Path, key: str, paths: Sequence[str | Path], search: list[Path]
+) -> BuildResult | None:
+    """The memo's build, when the cache is private and every unit it names is intact and was
+    built from the text read now."""
+    if not root.is_dir() or untrusted_reason(root) is not None:
+        return None
+    recalled = memo.recall(root / "memo", key, paths, search)
+    if recalled is None:
+        return None
+    units = []
+    for file, unit_key in recalled.unit_keys.items():
+        unit_dir = root / "units" / unit_key
+        if not unit_dir.is_dir() or verify(unit_dir) is not None:
+            return None
+        try:
+            unit = read_verified(unit_dir)
+        except UnitError:
+            return None
+        if unit.file != file or unit.source_sha256 != _sha(recalled.sources[file]):
+            return None
+        units.append(unit)
+    return BuildResult([], recalled.sources, units, [], root)
 
 
 @dataclass(frozen=True)
@@ -246,11 +285,16 @@ def compiler_fingerprint() -> str:
     return h.hexdigest()
 
 
+def _build_seed(use_native: bool) -> str:
+    """The compiler and the code generator: what every unit key starts from."""
+    tool = "native\0" + native.toolchain_fingerprint() if use_native else "vm"
+    return f"{compiler_fingerprint()}\0{tool}"
+
+
 def _unit_keys(prog: Program, use_native: bool) -> dict[str, str]:
     """Per file, the hash of everything its unit depends on, its path included: the unit
     records the path, so the same text at two places is two units."""
-    seed = hashlib.sha256(compiler_fingerprint().encode())
-    seed.update(b"native\0" + native.toolchain_fingerprint().encode() if use_native else b"vm")
+    seed = hashlib.sha256(_build_seed(use_native).encode())
     keys: dict[str, str] = {}
 
     def key(f: str, stack: tuple[str, ...] = ()) -> str:

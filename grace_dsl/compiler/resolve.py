@@ -98,14 +98,19 @@ def env_search_path() -> list[Path]:
     return [Path(p) for p in value.split(os.pathsep) if p]
 
 
+def search_dirs(search_path: Sequence[str | Path] = ()) -> list[Path]:
+    """Where ``use`` looks after the using file's own directory, in order."""
+    return [Path(p) for p in search_path] + env_search_path() + [stdlib_dir()]
+
+
 def resolve(
     paths: Sequence[str | Path], search_path: Sequence[str | Path] = ()
 ) -> tuple[Program, list[Diagnostic]]:
     """Load ``paths`` (files or directories of .eac files) and everything they import."""
     diags: list[Diagnostic] = []
     prog = Program()
-    search = [Path(p) for p in search_path] + env_search_path() + [stdlib_dir()]
-    roots = _root_files(paths, diags)
+    search = search_dirs(search_path)
+    roots = root_files(paths, diags)
     prog.roots = [str(p) for p in roots]
     queue = list(roots)
     while queue:
@@ -119,7 +124,7 @@ def resolve(
         if src.module is None:
             continue
         for use in src.module.uses:
-            target = _find_module(use.module, path.parent, search)
+            target = find_module(use.module, path.parent, search)
             if target is not None and target.suffix != ".eac":  # a symlink to another file
                 diags.append(_not_source(use, target))  # never read: no excerpt of it leaks
                 prog.use_targets[key].append(None)
@@ -144,7 +149,7 @@ def resolve(
 # ---- files and modules --------------------------------------------------------------------------
 
 
-def _root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Path]:
+def root_files(paths: Sequence[str | Path], diags: list[Diagnostic]) -> list[Path]:
     files: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
@@ -195,7 +200,7 @@ def _load(path: Path, diags: list[Diagnostic]) -> SourceFile:
     return SourceFile(str(path), text, module, result.dropped | quiet)
 
 
-def _find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Path | None:
+def find_module(module: tuple[str, ...], here: Path, search: list[Path]) -> Path | None:
     rel = Path(*module).with_suffix(".eac")
     for base in [here, *search]:
         candidate = base / rel

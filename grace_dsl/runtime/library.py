@@ -167,7 +167,7 @@ def compile_paths(
     Raises ``CompileError`` carrying every diagnostic when the sources have errors.
     ``progress(file, done, total)`` is called as each file that was not cached is compiled.
     """
-    result = build(paths, cache_dir, search_path, progress=progress)
+    result = build(paths, cache_dir, search_path, progress=progress, reuse_front_end=True)
     if not result.ok:
         raise CompileError(render_all(result.diagnostics, result.sources), result.diagnostics)
     return Library(result.units, result)
