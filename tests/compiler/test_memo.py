@@ -65,14 +65,14 @@ def test_an_edited_file_runs_the_front_end_and_rebuilds_its_unit(
 def test_a_new_file_in_the_request_is_seen(tmp_path: Path, front_ends: list[int]) -> None:
     src, cache = library_dir(tmp_path), tmp_path / "cache"
     memo_build(src, cache)
-    write(src, "more.eac", "use primitives.{Sphere}\nconcept More { shape s = Sphere(radius: 1mm) }")
+    write(
+        src, "more.eac", "use primitives.{Sphere}\nconcept More { shape s = Sphere(radius: 1mm) }"
+    )
     assert "More" in {c for u in memo_build(src, cache).units for c in u.concepts}
     assert len(front_ends) == 2
 
 
-def test_a_module_that_now_shadows_an_import_is_seen(
-    tmp_path: Path, front_ends: list[int]
-) -> None:
+def test_a_module_that_now_shadows_an_import_is_seen(tmp_path: Path, front_ends: list[int]) -> None:
     """`use primitives` found the standard library's file; a primitives.eac added earlier on
     the search path is what the front end would read now, so the memo must not answer."""
     src, cache, search = library_dir(tmp_path), tmp_path / "cache", tmp_path / "search"
