@@ -278,7 +278,17 @@ def resolve(
     if clause.pronoun and not nouns:
         if state.last is None:
             raise ParseError(f"{clause.text!r}: 'it' refers to nothing named before it")
-        return state.last, ""
+        last = state.last
+        if _fits(clause, last):
+            return last, ""
+        # "unlatch the door, then open it": the same object's part that can do it
+        same = [u for u in grounded.units if u.object == last.object and _fits(clause, u)]
+        if len(same) == 1:
+            return same[0], f"'it' in {clause.text!r} taken as {same[0].label}"
+        raise ParseError(
+            f"{clause.text!r}: 'it' is {last.label}, which cannot be '{clause.verb}'-ed; "
+            "name the part"
+        )
     if not nouns:
         if not state.nouns:
             raise ParseError(f"{clause.text!r}: which object? name it (the drawer, the door)")
@@ -301,11 +311,15 @@ def resolve(
     return found[0], ""
 
 
-def _by_verb(clause: Clause, units: list[Unit], nouns: Sequence[str]) -> list[Unit]:
+def _fits(clause: Clause, unit: Unit) -> bool:
+    """Whether ``unit`` can do the clause's verb."""
     if clause.intent == "action":
-        fit = [u for u in units if any(_phrase(a) == clause.verb for a in u.actions)]
-    else:
-        fit = [u for u in units if u.openable]
+        return any(_phrase(a) == clause.verb for a in unit.actions)
+    return unit.openable
+
+
+def _by_verb(clause: Clause, units: list[Unit], nouns: Sequence[str]) -> list[Unit]:
+    fit = [u for u in units if _fits(clause, u)]
     if fit:
         return fit
     can = sorted({_phrase(a) for u in units for a in u.actions})

@@ -256,4 +256,4 @@ def concept_phrases(c: Mapping[str, Any]) -> set[str]:
             out.add(words[-1])
             if len(words) > 2:
                 out.add(" ".join(words[-2:]))
-    return {o for o in out if o}
+    return {o for o in out if o and o not in FUNCTION_WORDS and len(o) > 2}
