@@ -241,9 +241,24 @@ def build_plan(
         state.last, state.verb = unit, (clause.verb, clause.intent)
         state.named.append(unit)
         state.nouns = clause.nouns or state.nouns
+    return assemble(instruction, subtasks, grounded, notes)
+
+
+def assemble(
+    instruction: str,
+    subtasks: Sequence[SubTask],
+    grounded: GroundedScene,
+    notes: Sequence[str] = (),
+    relations: Mapping[str, Sequence[tuple[str, str]]] | None = None,
+) -> Plan:
+    """The plan of ``subtasks``: its object graph (with ``relations`` by object when given,
+    else left/right computed from the scene) and its notes."""
+    objects = _graph(subtasks, grounded)
+    if relations is not None:
+        objects = tuple(replace(o, relations=tuple(relations.get(o.name, ()))) for o in objects)
     return Plan(
         instruction=instruction,
-        objects=_graph(subtasks, grounded),
+        objects=objects,
         subtasks=tuple(subtasks),
         notes=tuple(dict.fromkeys(notes)),
     )
@@ -373,7 +388,8 @@ def _hints(units: Sequence[Unit]) -> str:
     out = []
     z = [u.position[2] for u in units]
     if max(z) - min(z) > TIE:
-        out.append("top or bottom")
+        rows = len(_rows(units))
+        out.append("top, middle or bottom" if rows == 3 else "top or bottom")
     if _same_facing(units):
         x = [u.left_coordinate() for u in units]
         if max(x) - min(x) > TIE:
@@ -468,11 +484,19 @@ def subtask(clause: Clause, unit: Unit, q_now: float) -> SubTask:
         opening = unit.actions[action] == "opening"
     else:
         opening = clause.intent == "open"
-        action = unit.open_action if opening else unit.close_action
-        assert action is not None  # openable units have both
+        chosen = unit.open_action if opening else unit.close_action
+        assert chosen is not None  # openable units have both
+        action = chosen
     target = _target(clause.amount, opening, unit, clause.text)
+    return make_subtask(clause.text, unit, action, target, q_now)
+
+
+def make_subtask(text: str, unit: Unit, action: str, target: Target, q_now: float) -> SubTask:
+    """A sub-task moving ``unit`` by ``action`` to ``target`` from ``q_now``, with its
+    condition (any parser that has picked a unit, an action and a target ends here)."""
+    opening = unit.actions[action] == "opening"
     return SubTask(
-        text=clause.text,
+        text=text,
         object=unit.object,
         concept=unit.concept,
         part=unit.part,
