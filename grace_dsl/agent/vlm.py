@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.library import Library
 
 DEFAULT_MODEL = "gpt-4o"
+_BLUEPRINTS: dict[tuple[int, str], dict[str, Any]] = {}
 KINDS = ("open", "close", "fraction", "delta")
 
 OBJECTS_SCHEMA: dict[str, Any] = {
@@ -153,7 +154,6 @@ class VLMParser:
         self.lib = lib
         self.settings = settings or VLMSettings.from_env()
         self.client = client or _client(self.settings)
-        self._blueprints: dict[str, dict[str, Any]] = {}
         self.transcript: list[dict[str, Any]] = []  # every request's messages, for a person
 
     def parse(self, instruction: str, scene: SceneSpec, *, image: np.ndarray | None = None) -> Plan:
@@ -274,13 +274,18 @@ class VLMParser:
         return "\n".join(lines)
 
     def _blueprint(self, concept: str) -> dict[str, Any]:
-        """The catalog entry of ``concept`` (cached: the catalog reads its grasp formulas)."""
-        if concept not in self._blueprints:
-            from grace_dsl.agent.catalog import build_catalog
+        return blueprint(self.lib, concept)
 
-            catalog = build_catalog(self.lib, [concept])
-            self._blueprints[concept] = catalog["categories"][0]["concepts"][0]
-        return self._blueprints[concept]
+
+def blueprint(lib: Library, concept: str) -> dict[str, Any]:
+    """The catalog entry of ``concept`` (cached per library: the catalog reads its grasp
+    formulas, seconds per concept)."""
+    key = (id(lib), concept)
+    if key not in _BLUEPRINTS:
+        from grace_dsl.agent.catalog import build_catalog
+
+        _BLUEPRINTS[key] = build_catalog(lib, [concept])["categories"][0]["concepts"][0]
+    return _BLUEPRINTS[key]
 
 
 def _client(settings: VLMSettings) -> Any:
