@@ -7,12 +7,13 @@ The rules, in the order they apply:
    without a verb takes the previous clause's ("open the microwave and the fridge").
 2. Phrases: within a clause the longest known phrase wins ("chest of drawers", "pull out",
    "all the way", "turn on").
-3. Roles: a verb (an opening or closing word, or a concept's own action such as "flush"); an
-   amount ("halfway", "all the way", "a bit", "by 30 degrees", "to 50 percent", "10 cm"); the
-   selectors top/bottom/left/right/middle (and upper, lower, leftmost, ...) and the ordinals
-   first/second/third/last; a pronoun ("it"); nouns (concepts, parts, the scene's object names,
-   in order, so "the top drawer of the chest" gives the nouns drawer and chest); function words
-   ("the", "of", "please"), which are dropped.
+3. Roles: a quantifier ("all", "every", "both": each part that matches); a verb (an opening
+   or closing word, or a concept's own action such as "flush"); an amount ("halfway", "all the
+   way", "a bit", "by 30 degrees", "to 50 percent", "10 cm"); the selectors top/bottom/left/
+   right/middle (and upper, lower, leftmost, ...) and the ordinals first/second/third/last; a
+   pronoun ("it"); nouns (concepts, parts, the scene's object names, in order, so "the top
+   drawer of the chest" gives the nouns drawer and chest; plurals as their singular); function
+   words ("the", "of", "please"), which are dropped.
 4. Any other word is corrected when exactly one known word is close to it (the clause notes it);
    otherwise it is reported as unknown and the parser refuses the instruction.
 """
@@ -32,6 +33,7 @@ from grace_dsl.agent.lexicon import (
     OPEN_WORDS,
     ORDINALS,
     PRONOUNS,
+    QUANTIFIERS,
     SELECTORS,
     UNITS,
     Lexicon,
@@ -64,6 +66,7 @@ class Clause:
     ordinal: int | None = None  # 1, 2, 3 or -1 (last)
     nouns: tuple[str, ...] = ()
     pronoun: bool = False
+    every: bool = False  # "all", "every", "both": each part that matches
     unknown: tuple[str, ...] = ()
     ambiguous: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (word, close known words)
     notes: tuple[str, ...] = ()
@@ -110,6 +113,7 @@ def parse_clause(text: str, lexicon: Lexicon, extra: Collection[str] = ()) -> Cl
     ordinal = None
     nouns: list[str] = []
     pronoun = False
+    every = False
     unknown: list[str] = []
     ambiguous: list[tuple[str, tuple[str, ...]]] = []
     notes: list[str] = []
@@ -149,8 +153,10 @@ def parse_clause(text: str, lexicon: Lexicon, extra: Collection[str] = ()) -> Cl
             ordinal = ORDINALS[t]
         elif role == "pronoun":
             pronoun = True
+        elif role == "every":
+            every = True
         elif role == "noun":
-            nouns.append(t if t in known_nouns else singular(t))
+            nouns.append(singular(t) if singular(t) in known_nouns else t)
         elif role == "filler":
             notes.append(f"ignored {t!r}")
         i += 1
@@ -163,6 +169,7 @@ def parse_clause(text: str, lexicon: Lexicon, extra: Collection[str] = ()) -> Cl
         ordinal=ordinal,
         nouns=tuple(nouns),
         pronoun=pronoun,
+        every=every,
         unknown=tuple(unknown),
         ambiguous=tuple(ambiguous),
         notes=tuple(notes),
@@ -181,6 +188,8 @@ def _role(t: str, want_verb: bool, lexicon: Lexicon, nouns: Collection[str]) -> 
         return "ordinal"
     if t in PRONOUNS:
         return "pronoun"
+    if t in QUANTIFIERS:
+        return "every"
     if t in nouns or singular(t) in nouns:
         return "noun"
     if t in FILLERS:

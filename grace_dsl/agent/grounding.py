@@ -224,7 +224,7 @@ def build_plan(
     state = _State(q={(u.object, u.joint): u.q0 for u in grounded.units})
     subtasks: list[SubTask] = []
     notes: list[str] = []
-    for clause in clauses:
+    for k, clause in enumerate(clauses):
         _refuse_unknown(clause, grounded, lexicon)
         if clause.verb is None:
             if state.verb[0] is None:
@@ -232,16 +232,41 @@ def build_plan(
                     f"{clause.text!r}: no action in it; say what to do (open, close, ...)"
                 )
             clause = replace(clause, verb=state.verb[0], intent=state.verb[1])
-        unit, why = resolve(clause, grounded, state, lexicon)
+        if not clause.nouns and not clause.pronoun and not state.nouns:
+            # "open the top and bottom drawers": the noun comes in a later clause
+            later = next((c.nouns for c in clauses[k + 1 :] if c.nouns), ())
+            clause = replace(clause, nouns=later)
+        units, why = resolve_all(clause, grounded, state, lexicon)
         notes += list(clause.notes) + ([why] if why else [])
-        step = subtask(clause, unit, state.q[(unit.object, unit.joint)])
-        subtasks.append(step)
-        key = (unit.object, unit.joint)
-        state.q[key] = nominal(step.target, unit, state.q[key], step.action, unit.actions)
-        state.last, state.verb = unit, (clause.verb, clause.intent)
-        state.named.append(unit)
+        for unit in units:
+            step = subtask(clause, unit, state.q[(unit.object, unit.joint)])
+            subtasks.append(step)
+            key = (unit.object, unit.joint)
+            state.q[key] = nominal(step.target, unit, state.q[key], step.action, unit.actions)
+            state.named.append(unit)
+        state.last, state.verb = units[-1], (clause.verb, clause.intent)
         state.nouns = clause.nouns or state.nouns
     return assemble(instruction, subtasks, grounded, notes)
+
+
+def resolve_all(
+    clause: Clause, grounded: GroundedScene, state: _State, lexicon: Lexicon
+) -> tuple[list[Unit], str]:
+    """The units ``clause`` names: one, or with "all"/"every"/"both" each that matches (in
+    order along the direction they spread), and a note when context decided."""
+    if not clause.every:
+        unit, why = resolve(clause, grounded, state, lexicon)
+        return [unit], why
+    if not clause.nouns:
+        raise ParseError(f"{clause.text!r}: all of what? name them (all the drawers)")
+    found = [u for u in grounded.units if all(n in u.nouns for n in clause.nouns)]
+    if not found:
+        raise ParseError(_missing(clause, clause.nouns, grounded, lexicon))
+    found = _by_verb(clause, found, clause.nouns)
+    if clause.selectors or clause.ordinal is not None:
+        found = select(found, clause.selectors, clause.ordinal, " ".join(clause.nouns))
+    ordered = [u for group in _rows(found) for u in group]
+    return ordered, f"{clause.text!r}: {len(ordered)} parts, " + ", ".join(u.label for u in ordered)
 
 
 def assemble(
@@ -444,9 +469,11 @@ def _extreme(units: list[Unit], key: Any) -> list[Unit]:
 
 
 def _rows(units: Sequence[Unit]) -> list[list[Unit]]:
-    """Groups of level units, top to bottom if heights differ, else left to right."""
+    """Groups of level units along the direction they spread most: top to bottom (a chest's
+    drawers) or left to right (doors side by side, when all face the same way)."""
     z = [u.position[2] for u in units]
-    vertical = max(z) - min(z) > TIE
+    x = [u.left_coordinate() for u in units] if _same_facing(units) else [0.0]
+    vertical = max(z) - min(z) > TIE and max(z) - min(z) >= max(x) - min(x)
 
     def key(u: Unit) -> float:
         return -u.position[2] if vertical else -u.left_coordinate()

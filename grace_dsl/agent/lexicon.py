@@ -82,9 +82,10 @@ AMOUNT_PHRASES: Mapping[str, str] = {
 }  # fmt: skip
 SEQUENCE_WORDS = ("and then", "after that", "afterwards", "then", "and", "next", "finally")
 PRONOUNS = ("it", "them", "that one", "this one")
+QUANTIFIERS = ("all", "every", "each", "both", "all of")
 FUNCTION_WORDS = frozenset(
     "the a an of to on in at its by please then and robot can you could would kindly now "
-    "first-of-all also from with for one ones way".split()
+    "first-of-all also from with for one ones way more further".split()
 )
 FILLERS = frozenset("please kindly now gently carefully slowly quickly just again".split())
 
@@ -201,7 +202,7 @@ class Lexicon:
         every = (
             set(nouns) | parts | actions | set(OPEN_WORDS) | set(CLOSE_WORDS)
             | set(SELECTORS) | set(ORDINALS) | set(AMOUNT_PHRASES) | set(SEQUENCE_WORDS)
-            | set(PRONOUNS) | set(UNITS) | set(NUMBER_WORDS)
+            | set(PRONOUNS) | set(UNITS) | set(NUMBER_WORDS) | set(QUANTIFIERS)
         )  # fmt: skip
         phrases = tuple(sorted((p for p in every if " " in p), key=lambda p: -len(p.split())))
         words = {w for p in every for w in p.split()} | FILLERS

@@ -161,3 +161,16 @@ def test_public_parse_takes_a_scene_name(lib: eac.Library) -> None:
     assert [s.action for s in plan.subtasks] == ["open", "close"]
     assert plan_steps(plan)[1].target == Target("close")
     assert plan.to_json()["subtasks"][0]["condition"]["object"] == "fridge"
+
+
+def test_quantifiers_and_ordinals_follow_the_spread(
+    parser: OfflineParser, scenes: dict[str, SceneSpec]
+) -> None:
+    """Drawers stacked are counted top to bottom; doors side by side, left to right."""
+    plan = parser.parse("close all the drawers", scenes["kitchen"])
+    assert [s.joint for s in plan.subtasks] == ["slide1", "slide2", "slide3"]
+    for word, obj in (("first", "hall_door"), ("second", "bedroom_door"), ("last", "wardrobe")):
+        (step,) = parser.parse(f"open the {word} door", scenes["hall"]).subtasks
+        assert step.object == obj, word
+    plan = parser.parse("open the top and bottom drawers", scenes["kitchen"])
+    assert [s.joint for s in plan.subtasks] == ["slide1", "slide3"]
