@@ -409,16 +409,15 @@ def _ambiguous(what: str, units: Sequence[Unit], clause: Clause) -> str:
 
 
 def _hints(units: Sequence[Unit]) -> str:
-    """The selectors that would tell ``units`` apart."""
-    out = []
-    z = [u.position[2] for u in units]
-    if max(z) - min(z) > TIE:
-        rows = len(_rows(units))
-        out.append("top, middle or bottom" if rows == 3 else "top or bottom")
-    if _same_facing(units):
-        x = [u.left_coordinate() for u in units]
-        if max(x) - min(x) > TIE:
-            out.append("left or right")
+    """The selectors that pick exactly one of ``units`` (each tried alone), and the objects."""
+    words = []
+    for s in ("top", "middle", "bottom", "left", "right"):
+        try:
+            if len(select(units, (s,), None, "")) == 1:
+                words.append(s)
+        except ParseError:
+            continue
+    out = [" or ".join(f"'{w}'" for w in words)] if words else []
     objects = sorted({u.object for u in units})
     if len(objects) > 1:
         out.append("the object (" + ", ".join(objects) + ")")
@@ -556,7 +555,7 @@ def _target(amount: Amount | None, opening: bool, unit: Unit, text: str) -> Targ
     if amount.dim != want:
         turns = "turns" if want == "angle" else "slides"
         raise ParseError(
-            f"{text!r}: {unit.label} {turns}; give an {want} ("
+            f"{text!r}: {unit.label} {turns}; give {'an' if want == 'angle' else 'a'} {want} ("
             + ("degrees" if want == "angle" else "cm or mm")
             + f"), not {'degrees' if amount.dim == 'angle' else 'a length'}"
         )
