@@ -113,6 +113,8 @@ def test_typos_are_corrected_only_when_unique(
     assert "read 'drwaer' as 'drawer'" in plan.notes and "read 'opne' as 'open'" in plan.notes
     with pytest.raises(ParseError, match="no concept in the library matches 'dor'"):
         parser.parse("open the dor", scenes["kitchen"])  # too short to correct
+    with pytest.raises(ParseError, match="I do not know 'lide'; did you mean 'lid' or .*'slide'"):
+        parser.parse("open the lide", scenes["kitchen"])  # several words are as near
 
 
 @pytest.mark.parametrize(
