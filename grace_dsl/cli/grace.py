@@ -31,7 +31,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_bench_arguments(
         sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
     )
+    from grace_dsl.cli.parse_cmd import add_parse_arguments, run_parse  # noqa: I001
+
+    add_parse_arguments(sub.add_parser("parse", help="an instruction in a scene -> its plan"))
     args = parser.parse_args(argv)
+    if args.command == "parse":
+        return run_parse(args)
     if args.command == "plan":
         return run_plan(args)
     if args.command == "bench":
