@@ -53,10 +53,12 @@ _ROBOT = {
 
 
 def __getattr__(name: str) -> object:
-    if name in _ROBOT:
-        import importlib
+    import importlib
 
+    if name in _ROBOT:
         return getattr(importlib.import_module(_ROBOT[name]), name)
+    if name == "agent":  # eac.agent.parse(...): task parsing, imported on first use
+        return importlib.import_module("grace_dsl.agent")
     raise AttributeError(f"module 'grace_dsl' has no attribute {name!r}")
 
 
