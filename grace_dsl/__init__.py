@@ -31,6 +31,8 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
     from grace_dsl.robot.grasp_ik import GraspIKResult, solve_grasp_ik
     from grace_dsl.robot.ik import IKOptions, IKResult, solve_ik
     from grace_dsl.robot.model import Robot
+    from grace_dsl.perception.estimate import estimate
+    from grace_dsl.perception.types import Estimate
     from grace_dsl.robot.timing import time_optimal
 
 # The robot layer loads Pinocchio's robot models and OSQP: imported on first use, so that
@@ -49,6 +51,8 @@ _ROBOT = {
     "plan_action": "grace_dsl.robot.act",
     "ActionPlanningError": "grace_dsl.robot.act",
     "time_optimal": "grace_dsl.robot.timing",
+    "estimate": "grace_dsl.perception.estimate",
+    "Estimate": "grace_dsl.perception.types",
 }
 
 
@@ -62,6 +66,8 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     "ActionPlan",
+    "Estimate",
+    "estimate",
     "ActionPlanningError",
     "GraspChoice",
     "GraspIKResult",
