@@ -25,14 +25,14 @@ from grace_dsl.runtime.manipulation import Option
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
+    from grace_dsl.perception.estimate import estimate
+    from grace_dsl.perception.types import Estimate
     from grace_dsl.robot.act import ActionPlan, ActionPlanningError, plan_action
     from grace_dsl.robot.choose import GraspChoice, choose_grasp
     from grace_dsl.robot.collision import collision_scene
     from grace_dsl.robot.grasp_ik import GraspIKResult, solve_grasp_ik
     from grace_dsl.robot.ik import IKOptions, IKResult, solve_ik
     from grace_dsl.robot.model import Robot
-    from grace_dsl.perception.estimate import estimate
-    from grace_dsl.perception.types import Estimate
     from grace_dsl.robot.timing import time_optimal
 
 # The robot layer loads Pinocchio's robot models and OSQP: imported on first use, so that

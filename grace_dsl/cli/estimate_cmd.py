@@ -35,7 +35,8 @@ def load_cloud(path: str | Path) -> np.ndarray:
         if path.suffix.lower() == ".ply":
             import trimesh
 
-            return np.asarray(trimesh.load(path).vertices, float)
+            loaded: Any = trimesh.load(path)  # a PointCloud or a mesh: both have vertices
+            return np.asarray(loaded.vertices, float)
     except (OSError, ValueError, AttributeError) as exc:
         raise PointCloudError(f"{path}: cannot read a point cloud ({exc})") from None
     raise PointCloudError(f"{path}: give a .npy (N, 3) array or a .ply file")

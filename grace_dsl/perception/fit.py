@@ -42,6 +42,7 @@ SILHOUETTE = 4.0  # spacings: a ray farther than this from every observed ray sa
 FREE_RAYS = 300
 FREE_DEPTHS = 16
 ICP_POINTS = 256
+SCREEN_ITERATIONS = 6  # per global start, before the best one is refined to the end
 JOINT_STARTS = (0.0, 0.5, 0.9)  # of each joint's range
 MODEL_POINTS = 1500
 
@@ -314,8 +315,9 @@ class Fitter:
             st, _transform(frame, points), _transform(frame, free_world), True
         )
         st.cost = float(r @ r)
-        it = 0
+        done = 0
         for it in range(1, iterations + 1):
+            done = it
             assert jac is not None
             jtj, jtr = jac.T @ jac, jac.T @ r
             diag = np.maximum(np.diag(jtj), 1e-12)
@@ -341,7 +343,7 @@ class Fitter:
         _, _, dd = self.residuals(
             st, _transform(frame, points), _transform(frame, free_world), False
         )
-        return self._result(st, dd, it)
+        return self._result(st, dd, done)
 
     def _step(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
         theta = np.clip(st.theta + step[:nt], self.lo, self.hi)
@@ -382,7 +384,7 @@ def fit(
     pose_hint: np.ndarray | None = None,
     init: Mapping[str, Any] | None = None,
     init_joints: Mapping[str, float] | None = None,
-    starts: int = 2,
+    starts: int = 6,
     iterations: int = 30,
     seed: int = 0,
 ) -> FitResult:
@@ -401,16 +403,17 @@ def fit(
     else:
         rots = None if hint is None else [hint[:3, :3]]
         cands = global_init(concept, points, base, rots, seed, init_joints)
-    best: FitResult | None = None
+    tried: list[FitResult] = []
+    short = iterations if len(cands) == 1 else SCREEN_ITERATIONS
     for _, pose, params, joints in cands[:starts]:
         try:
             fitter = Fitter(concept, params, joints)
         except ParameterError:  # a scaled start that breaks a requirement
             fitter = Fitter(concept, base, joints)
-        res = fitter.run(points, pose, cam, iterations)
-        if best is None or _score(res) < _score(best):
-            best = res
-    assert best is not None
+        tried.append(fitter.run(points, pose, cam, short))
+    best = min(tried, key=_score)
+    if short < iterations:  # continue the best screened start
+        best = Fitter(concept, best.params, best.joints).run(points, best.pose, cam, iterations)
     return best
 
 

@@ -14,7 +14,9 @@ import re
 
 import numpy as np
 
+from grace_dsl.perception.camera import back_project
 from grace_dsl.perception.render import DepthRender
+from grace_dsl.perception.types import Intrinsics, Segmenter
 
 STOP_WORDS = frozenset({"the", "a", "an", "of", "on", "to", "its", "part", "object"})
 
@@ -52,3 +54,14 @@ class GroundTruthSegmenter:
             if all(re.search(rf"\b{re.escape(w)}", text) for w in words) and mask.any():
                 out[name] = mask
         return out
+
+
+def clouds(
+    segmenter: Segmenter, rgb: np.ndarray, depth: np.ndarray, intr: Intrinsics, query: str
+) -> dict[str, np.ndarray]:
+    """The camera-frame cloud of every part ``segmenter`` finds for ``query`` (pixels with no
+    depth dropped): the input ``estimate`` takes, from any segmenter."""
+    return {
+        name: back_project(depth, intr, mask)
+        for name, mask in segmenter.segment(rgb, depth, query).items()
+    }
