@@ -22,6 +22,7 @@ def add_estimate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("concept", help="a concept of the standard library, e.g. CabinetDrawer")
     p.add_argument("cloud", help="the part's points: .npy (N, 3) or .ply, camera frame, metres")
     p.add_argument("--png", metavar="FILE", help="the fitted instance over the points")
+    p.add_argument("--size", type=int, default=480, help="the picture's side in pixels (480)")
     p.add_argument("--seed", type=int, default=0, help="for subsampling and the search (0)")
     p.add_argument("--json", action="store_true", help="print the estimate as JSON")
 
@@ -62,7 +63,7 @@ def _run(args: Any) -> int:
     if args.png:
         from grace_dsl.perception.picture import fit_picture
 
-        fit_picture(fitted_instance_of(concept, est), points, args.png)
+        fit_picture(fitted_instance_of(concept, est), points, args.png, size=args.size)
     if args.json:
         print_json(
             {

@@ -22,7 +22,7 @@ from grace_dsl.perception.views import join_params, split_params
 from grace_dsl.runtime.library import Concept
 
 MIN_POINTS = 32
-MAX_POINTS = 1024  # the fit's cost grows with the points; more add little at 2 mm noise
+MAX_POINTS = 768  # the fit's cost grows with the points; more add little at 2 mm noise
 NOISE_FLOOR = 0.0025  # m: a residual below this is what a 2 mm sensor gives on the right model
 FULL_COVER = 128  # points: fewer lower the confidence in proportion
 

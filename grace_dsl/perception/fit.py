@@ -34,13 +34,13 @@ from grace_dsl.runtime.shapes import ShapeTree
 
 CAUCHY = 0.004  # m: the robust scale (a 2 mm sensor's points lie well inside it)
 # m toward the camera from an observed point: free space (a handle standing off a front)
-FREE_STEPS = tuple(np.geomspace(0.006, 0.12, 8).tolist())
-FRONT_RAYS = 256
+FREE_STEPS = tuple(np.geomspace(0.006, 0.12, 6).tolist())
+FRONT_RAYS = 128
 FREE_WEIGHT = 0.5
 PRIOR_WEIGHT = 0.02  # per parameter, in units of its range
 SILHOUETTE = 4.0  # spacings: a ray farther than this from every observed ray saw nothing
-FREE_RAYS = 300
-FREE_DEPTHS = 16
+FREE_RAYS = 200
+FREE_DEPTHS = 12
 ICP_POINTS = 256
 SCREEN_ITERATIONS = 6  # per global start, before the best one is refined to the end
 JOINT_STARTS = (0.0, 0.5, 0.9)  # of each joint's range
@@ -385,7 +385,7 @@ def fit(
     init: Mapping[str, Any] | None = None,
     init_joints: Mapping[str, float] | None = None,
     starts: int = 6,
-    iterations: int = 30,
+    iterations: int = 20,
     seed: int = 0,
 ) -> FitResult:
     """Fit ``concept`` to ``points`` (N, 3): the best of ``starts`` refinements.

@@ -88,23 +88,3 @@ def test_a_cloud_of_the_wrong_object_gets_a_low_confidence(lib) -> None:
     sphere = np.random.default_rng(0).normal(size=(400, 3))
     sphere = 0.1 * sphere / np.linalg.norm(sphere, axis=1, keepdims=True) + [0, 0, 0.8]
     assert estimate(lib["CabinetDrawer"], sphere).confidence < 0.3
-
-
-@pytest.mark.slow
-def test_grace_estimate_prints_the_fit_and_draws_it(lib, tmp_path, capsys) -> None:
-    import json
-
-    from grace_dsl.cli.grace import main as grace_main
-
-    view = draw_view(lib["RoundKnob"], 4, ViewConfig(points=512))
-    cloud = tmp_path / "knob.npy"
-    np.save(cloud, view.points.astype(float))
-    png = tmp_path / "fit.png"
-    assert grace_main(["estimate", "RoundKnob", str(cloud), "--png", str(png), "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert set(out["params"]) == set(view.params) and 0 <= out["confidence"] <= 1
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    bad = tmp_path / "bad.npy"
-    np.save(bad, np.zeros((10, 2)))
-    assert grace_main(["estimate", "RoundKnob", str(bad)]) == 1
-    assert "shape" in capsys.readouterr().err
