@@ -239,12 +239,38 @@ class _State:
     cost: float = math.inf
 
 
+def feasible_instance(concept: Concept, params: Mapping[str, Any]) -> Instance:
+    """An instance at ``params``, or, when they break a requirement (a start from a network or
+    a scaled default can), at the first of them pulled toward the defaults that does not."""
+    try:
+        return concept.instantiate(params=params)
+    except ParameterError:
+        pass
+    defaults = concept.instantiate().params
+    for a in (0.9, 0.75, 0.5, 0.25):
+        mixed = dict(params)
+        for s in concept.params:
+            if s.kind in ("num", "vec") and s.name in params:
+                v = np.asarray(defaults[s.name], float) + a * (
+                    np.asarray(params[s.name], float) - np.asarray(defaults[s.name], float)
+                )
+                mixed[s.name] = float(v) if s.kind == "num" else tuple(map(float, v))
+        try:
+            return concept.instantiate(params=mixed)
+        except ParameterError:
+            continue
+    return concept.instantiate(
+        params={k: v for k, v in params.items() if k not in defaults}
+        | {k: defaults[k] for k in defaults if k in params}
+    )
+
+
 class Fitter:
     """Levenberg-Marquardt on one concept with its discrete parameters fixed."""
 
     def __init__(self, concept: Concept, params: Mapping[str, Any], joints: Mapping[str, float]):
         self.concept = concept
-        inst = concept.instantiate(params=params)
+        inst = feasible_instance(concept, params)
         if joints:
             inst = inst.with_joints(dict(joints))
         self.pfix = inst.p.copy()
@@ -431,7 +457,7 @@ def fitted_instance_of(concept: Concept, est: Any) -> Instance:
     """The instance an ``Estimate`` describes, posed in the points' frame."""
     from grace_dsl.perception.views import join_params
 
-    defaults = concept.defaults()  # the non-float parameters an Estimate does not carry
+    defaults = concept.instantiate().params  # the non-float ones an Estimate does not carry
     fixed = {s.name: defaults[s.name] for s in concept.params if s.kind not in ("num", "vec")}
     inst = concept.instantiate(params=join_params(concept, est.params, fixed), pose=est.pose)
     return inst.with_joints(est.joints) if est.joints else inst
