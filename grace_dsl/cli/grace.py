@@ -25,6 +25,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "-o", "--output", default="out/demo", help="where the picture and viewer page go"
     )
     from grace_dsl.cli.bench_cmd import add_bench_arguments, run_bench
+    from grace_dsl.cli.data_cmd import add_data_arguments, run_data
+    from grace_dsl.cli.estimate_cmd import add_estimate_arguments, run_estimate
     from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
 
     add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
@@ -34,9 +36,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     from grace_dsl.cli.parse_cmd import add_parse_arguments, run_parse  # noqa: I001
 
     add_parse_arguments(sub.add_parser("parse", help="an instruction in a scene -> its plan"))
+    add_data_arguments(sub.add_parser("data", help="synthetic views for perception (data gen)"))
+    add_estimate_arguments(sub.add_parser("estimate", help="fit a concept to a partial cloud"))
     args = parser.parse_args(argv)
     if args.command == "parse":
         return run_parse(args)
+    if args.command == "data":
+        return run_data(args)
+    if args.command == "estimate":
+        return run_estimate(args)
     if args.command == "plan":
         return run_plan(args)
     if args.command == "bench":

@@ -85,6 +85,4 @@ class Segmenter(Protocol):
     The default uses the renderer's ground-truth segmentation; an open-vocabulary model plugs in
     behind the same call. An empty dict means nothing matched the query."""
 
-    def segment(
-        self, rgb: np.ndarray, depth: np.ndarray, query: str
-    ) -> dict[str, np.ndarray]: ...
+    def segment(self, rgb: np.ndarray, depth: np.ndarray, query: str) -> dict[str, np.ndarray]: ...
