@@ -31,7 +31,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_bench_arguments(
         sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
     )
+    from grace_dsl.cli.train_cmd import register as register_train
+
+    register_train(sub)  # grace train
     args = parser.parse_args(argv)
+    if hasattr(args, "handler"):  # subcommands that carry their own handler
+        return int(args.handler(args))
     if args.command == "plan":
         return run_plan(args)
     if args.command == "bench":
