@@ -25,6 +25,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "-o", "--output", default="out/demo", help="where the picture and viewer page go"
     )
     from grace_dsl.cli.bench_cmd import add_bench_arguments, run_bench
+    from grace_dsl.cli.data_cmd import add_data_arguments, run_data
     from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
 
     add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
@@ -34,9 +35,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from grace_dsl.cli.train_cmd import register as register_train
 
     register_train(sub)  # grace train
+    add_data_arguments(sub.add_parser("data", help="synthetic views for perception (data gen)"))
     args = parser.parse_args(argv)
     if hasattr(args, "handler"):  # subcommands that carry their own handler
         return int(args.handler(args))
+    if args.command == "data":
+        return run_data(args)
     if args.command == "plan":
         return run_plan(args)
     if args.command == "bench":
