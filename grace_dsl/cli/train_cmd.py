@@ -30,6 +30,7 @@ def register(sub: Any) -> None:
     p.add_argument("--points", type=int, default=512, help="points per cloud (512)")
     p.add_argument("--batch", type=int, default=32, help="clouds per step (32)")
     p.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (2e-3)")
+    p.add_argument("--subsets", type=int, default=1, help="point subsets per view (1)")
     p.add_argument("--seed", type=int, default=0, help="views, split, order and weights (0)")
     p.add_argument("--threads", type=int, default=1, help="torch threads (1: deterministic)")
     p.add_argument("--noise", type=float, default=0.002, help="depth noise of drawn views (m)")
@@ -60,9 +61,9 @@ def _run(args: argparse.Namespace) -> int:
         data = load_shards(args.data, args.concept)
     cfg = TrainConfig(
         epochs=args.epochs, batch=args.batch, lr=args.lr, points=args.points, seed=args.seed,
-        threads=args.threads,
+        threads=args.threads, subsets=args.subsets,
     )  # fmt: skip
-    command = "grace " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv else ""
+    command = "grace " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with _bar(not args.json) as bar:
         task = bar.add_task(f"training {data.concept}", total=cfg.epochs)
 

@@ -54,6 +54,7 @@ class TrainConfig:
     threads: int = 1
     val_share: float = 0.1
     pose_weight: float = 0.5
+    subsets: int = 1  # point subsets drawn per view (the views hold more points than a cloud)
     model: dict[str, Any] = field(default_factory=dict)
 
 
@@ -186,16 +187,21 @@ def train(
     out = Path(out)
     scale = cloud_scale(data.points)
     lo, hi = param_ranges(data.params)
+    k = cfg.subsets  # item i * k + s is subset s of view i
     clouds, centroids = zip(
-        *(normalize_cloud(p, cfg.points, scale, cfg.seed + i) for i, p in enumerate(data.points)),
+        *(normalize_cloud(data.points[i // k], cfg.points, scale, cfg.seed + i)
+          for i in range(len(data) * k)),
         strict=True,
-    )
+    )  # fmt: skip
     x = torch.from_numpy(np.stack(clouds))
-    y = torch.from_numpy(((data.params - lo) / (hi - lo)).astype(np.float32))
-    pose = torch.from_numpy(pose_targets(data.poses, np.stack(centroids), scale))
+    y = torch.from_numpy(np.repeat((data.params - lo) / (hi - lo), k, axis=0).astype(np.float32))
+    poses = np.repeat(data.poses, k, axis=0)
+    pose = torch.from_numpy(pose_targets(poses, np.stack(centroids), scale))
     mcfg = ModelConfig(n_params=len(data.param_names), **cfg.model)
     grouped = _group_all(x, mcfg, group)
-    val, fit = _split(len(data), cfg)
+    val_views, fit_views = _split(len(data), cfg)
+    val = val_views * k  # held out: one subset of each held-out view, never its other subsets
+    fit = (fit_views[:, None] * k + np.arange(k)).ravel()
     model = PointTransformer(mcfg)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     ckpt = out.with_name(out.name + ".ckpt")
@@ -255,9 +261,9 @@ def train(
 
 
 def _check_config(cfg: TrainConfig, data: ViewArrays) -> None:
-    if cfg.epochs < 1 or cfg.batch < 1 or cfg.points < MIN_POINTS or cfg.threads < 1:
+    if min(cfg.epochs, cfg.batch, cfg.threads, cfg.subsets) < 1 or cfg.points < MIN_POINTS:
         raise PerceptionError(
-            f"epochs, batch and threads must be >= 1 and points >= {MIN_POINTS}: {cfg}"
+            f"epochs, batch, threads and subsets must be >= 1, points >= {MIN_POINTS}: {cfg}"
         )
     if not 0 < cfg.val_share < 1:
         raise PerceptionError(f"val_share must be in (0, 1), got {cfg.val_share}")

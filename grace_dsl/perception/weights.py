@@ -81,9 +81,10 @@ def write_weights(path: str | Path, wf: WeightsFile) -> Path:
         "trained": wf.trained,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    arrays = {TENSOR_PREFIX + k: v for k, v in stored.items()}
+    arrays: dict[str, Any] = {TENSOR_PREFIX + k: v for k, v in stored.items()}
+    arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
     with path.open("wb") as fh:
-        np.savez_compressed(fh, meta=np.array(json.dumps(meta, sort_keys=True)), **arrays)
+        np.savez_compressed(fh, **arrays)
     return path
 
 
