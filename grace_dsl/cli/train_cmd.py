@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +62,7 @@ def _run(args: argparse.Namespace) -> int:
         epochs=args.epochs, batch=args.batch, lr=args.lr, points=args.points, seed=args.seed,
         threads=args.threads, subsets=args.subsets,
     )  # fmt: skip
-    command = "grace " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    command = _command(args)
     with _bar(not args.json) as bar:
         task = bar.add_task(f"training {data.concept}", total=cfg.epochs)
 
@@ -79,6 +78,19 @@ def _run(args: argparse.Namespace) -> int:
     print_table(f"{data.concept}: held-out mean absolute error ({result.path})",
                 ("parameter", "MAE (m or rad)"), rows)  # fmt: skip
     return 0
+
+
+def _command(args: argparse.Namespace) -> str:
+    """The command that reproduces this run, every setting spelled out (stored in the weights)."""
+    source = f"--data {shlex.quote(args.data)}" if args.data else f"--generate {args.generate}"
+    words = [
+        "grace train", shlex.quote(args.concept), source, f"--epochs {args.epochs}",
+        f"--points {args.points}", f"--batch {args.batch}", f"--lr {args.lr:g}",
+        f"--subsets {args.subsets}", f"--seed {args.seed}", f"--threads {args.threads}",
+    ]  # fmt: skip
+    if args.generate is not None:
+        words.append(f"--noise {args.noise:g}")
+    return " ".join(words + ["-o", shlex.quote(Path(args.output).name)])
 
 
 def _generate(concept: str, n: int, seed: int, noise: float) -> list[Any]:

@@ -87,6 +87,14 @@ def test_network_shapes_and_rotation_head() -> None:
     assert neighbours.shape == (2, 16, 4)
 
 
+@pytest.fixture(scope="module")
+def tiny_weights(lib, tmp_path_factory: pytest.TempPathFactory) -> Path:  # type: ignore[no-untyped-def]
+    """A tiny network trained once for the tests that only need some weights file."""
+    data = stand_in(lib["StraightHandle"], 8, seed=4, points=128)
+    return train(data, tmp_path_factory.mktemp("w") / "w.npz", TINY).path
+
+
+@pytest.mark.slow
 def test_tiny_training_run_writes_loadable_deterministic_weights(lib, tmp_path: Path) -> None:
     concept = lib["StraightHandle"]
     data = stand_in(concept, 24, seed=1)
@@ -107,6 +115,7 @@ def test_tiny_training_run_writes_loadable_deterministic_weights(lib, tmp_path: 
     assert 0.0 <= est.confidence <= 1.0
 
 
+@pytest.mark.slow
 def test_training_resumes_from_its_checkpoint(lib, tmp_path: Path) -> None:
     data = stand_in(lib["StraightHandle"], 16, seed=2, points=128)
     whole = train(data, tmp_path / "whole.npz", TINY)
@@ -130,9 +139,10 @@ def test_training_resumes_from_its_checkpoint(lib, tmp_path: Path) -> None:
     assert [r["train"] for r in resumed.history] == [r["train"] for r in whole.history]
 
 
-def test_weights_refuse_other_concepts_edits_and_pickles(lib, tmp_path: Path) -> None:
-    data = stand_in(lib["StraightHandle"], 8, seed=4, points=128)
-    path = train(data, tmp_path / "w.npz", TINY).path
+def test_weights_refuse_other_concepts_edits_and_pickles(
+    lib, tmp_path: Path, tiny_weights: Path
+) -> None:  # type: ignore[no-untyped-def]
+    path = tiny_weights
     with pytest.raises(ModelWeightsError, match="not RoundKnob"):
         read_weights(path, "RoundKnob")
     with pytest.raises(ModelWeightsError, match="not RoundKnob"):
@@ -175,9 +185,8 @@ def test_weights_refuse_other_concepts_edits_and_pickles(lib, tmp_path: Path) ->
         (np.zeros((5, 3)), "at least"),
     ],
 )
-def test_bad_clouds_raise_point_cloud_error(lib, tmp_path: Path, cloud, match) -> None:  # type: ignore[no-untyped-def]
-    data = stand_in(lib["StraightHandle"], 8, seed=5, points=128)
-    est = LearnedEstimator.load(lib["StraightHandle"], train(data, tmp_path / "w.npz", TINY).path)
+def test_bad_clouds_raise_point_cloud_error(lib, tiny_weights, cloud, match) -> None:  # type: ignore[no-untyped-def]
+    est = LearnedEstimator.load(lib["StraightHandle"], tiny_weights)
     with pytest.raises(PointCloudError, match=match):
         est.predict(cloud)
 
