@@ -47,3 +47,14 @@ def test_shipped_weights_predict_held_out_views(lib, name: str) -> None:  # type
             if dims[k.split("[")[0]] == "length":
                 errors.append(abs(est.params[k] - truth) * 1000)
     assert np.mean(errors) <= STATED_MM[name]
+
+
+@pytest.mark.slow
+def test_a_cloud_of_another_object_gets_a_low_confidence(lib) -> None:  # type: ignore[no-untyped-def]
+    handle = generate_views(lib["StraightHandle"], 2, seed=2001, points=1024, noise=0.002)
+    drawer = generate_views(lib["CabinetDrawer"], 2, seed=2001, points=1024, noise=0.002)
+    right = [estimate_learned(lib["StraightHandle"], v.points) for v in handle]
+    wrong = [estimate_learned(lib["StraightHandle"], v.points) for v in drawer]
+    assert min(e.confidence for e in right) > 0.2
+    assert max(e.confidence for e in wrong) < 0.1
+    assert all(e.residual > 0.02 for e in wrong)
