@@ -25,6 +25,8 @@ from grace_dsl.runtime.manipulation import Option
 __version__ = "0.1.0"
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers
+    from grace_dsl.perception.estimate import estimate
+    from grace_dsl.perception.types import Estimate
     from grace_dsl.robot.act import ActionPlan, ActionPlanningError, plan_action
     from grace_dsl.robot.choose import GraspChoice, choose_grasp
     from grace_dsl.robot.collision import collision_scene
@@ -49,6 +51,8 @@ _ROBOT = {
     "plan_action": "grace_dsl.robot.act",
     "ActionPlanningError": "grace_dsl.robot.act",
     "time_optimal": "grace_dsl.robot.timing",
+    "estimate": "grace_dsl.perception.estimate",
+    "Estimate": "grace_dsl.perception.types",
 }
 
 
@@ -62,6 +66,8 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     "ActionPlan",
+    "Estimate",
+    "estimate",
     "ActionPlanningError",
     "GraspChoice",
     "GraspIKResult",

@@ -26,6 +26,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     from grace_dsl.cli.bench_cmd import add_bench_arguments, run_bench
     from grace_dsl.cli.data_cmd import add_data_arguments, run_data
+    from grace_dsl.cli.estimate_cmd import add_estimate_arguments, run_estimate
     from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
 
     add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
@@ -36,11 +37,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     register_train(sub)  # grace train
     add_data_arguments(sub.add_parser("data", help="synthetic views for perception (data gen)"))
+    add_estimate_arguments(sub.add_parser("estimate", help="fit a concept to a partial cloud"))
     args = parser.parse_args(argv)
     if hasattr(args, "handler"):  # subcommands that carry their own handler
         return int(args.handler(args))
     if args.command == "data":
         return run_data(args)
+    if args.command == "estimate":
+        return run_estimate(args)
     if args.command == "plan":
         return run_plan(args)
     if args.command == "bench":

@@ -37,6 +37,8 @@ class DepthRender:
     links: tuple[str, ...]
     camera_pose: np.ndarray
     intrinsics: Intrinsics
+    shape_labels: np.ndarray | None = None  # (H, W) index in ``shapes`` (-1: nothing)
+    shapes: tuple[str, ...] = ()  # the outermost shapes (``handle.bar``: part handle)
 
     def mask(self, links: Iterable[str] | None = None) -> np.ndarray:
         """Pixels that see any of ``links`` (every link of the instance when None)."""
@@ -68,10 +70,15 @@ class InstanceSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return self.per_shape(points).min(axis=0)
 
-    def link_of(self, points: np.ndarray) -> np.ndarray:
-        """Index in ``links`` of the nearest shape's link at each point."""
+    def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Index of the nearest shape at each point, and of its link in ``links``."""
         owners = np.array([k for _, _, k in self.shapes])
-        return owners[self.per_shape(points).argmin(axis=0)]
+        shape = self.per_shape(points).argmin(axis=0)
+        return shape, owners[shape]
+
+    @property
+    def shape_names(self) -> tuple[str, ...]:
+        return tuple(n for n, _, _ in self.shapes)
 
 
 def bounding_sphere(inst: Instance, margin: float = 0.01) -> tuple[np.ndarray, float]:
@@ -106,13 +113,22 @@ def render(
     t_exit = -b[idx] + root
     depth = np.zeros(len(dirs))
     labels = np.full(len(dirs), -1, dtype=np.int16)
+    shapes = np.full(len(dirs), -1, dtype=np.int16)
     hit_idx, hit_t = _march(sdf, eye, dirs, idx, t, t_exit)
     if len(hit_idx):
         depth[hit_idx] = hit_t * dirs_cam[hit_idx, 2]
         points = eye + hit_t[:, None] * dirs[hit_idx]
-        labels[hit_idx] = sdf.link_of(points)
-    shape = (intr.height, intr.width)
-    return DepthRender(depth.reshape(shape), labels.reshape(shape), sdf.links, camera_pose, intr)
+        shapes[hit_idx], labels[hit_idx] = sdf.nearest(points)
+    hw = (intr.height, intr.width)
+    return DepthRender(
+        depth.reshape(hw),
+        labels.reshape(hw),
+        sdf.links,
+        camera_pose,
+        intr,
+        shapes.reshape(hw),
+        sdf.shape_names,
+    )
 
 
 def _march(

@@ -12,6 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+import casadi
 import numpy as np
 
 from grace_dsl.compiler import native
@@ -31,11 +32,20 @@ class _UnitFunctions:
     def __init__(self, unit: Unit):
         self.unit = unit
         self._evaluators: dict[str, native.Evaluator] | None = None
+        self._symbolic: dict[str, casadi.Function] | None = None
 
     def get(self, name: str) -> native.Evaluator:
         if self._evaluators is None:
             self._evaluators = dict(unit_evaluators(self.unit))
         return self._evaluators[name]
+
+    def symbolic(self, name: str) -> casadi.Function:
+        """The CasADi function itself (deserialized once per unit), for callers that compose
+        it into a larger graph and differentiate it (perception's model fit)."""
+        if self._symbolic is None:
+            data = json.loads((self.unit.dir / "functions.json").read_text(encoding="utf-8"))
+            self._symbolic = {n: casadi.Function.deserialize(s) for n, s in data.items()}
+        return self._symbolic[name]
 
 
 class Concept:
@@ -94,6 +104,15 @@ class Concept:
             raise UnknownNameError(f"{self.name} has no {kind} {name!r}") from None
         self._evaluators[key] = evaluator
         return evaluator
+
+    def symbolic(self, kind: str, name: str = "") -> casadi.Function:
+        """The CasADi function behind ``function(kind, name)``: same inputs and outputs, for
+        composing and differentiating (``function`` is the fast way to evaluate it)."""
+        key = f"{kind}:{name}" if name else kind
+        try:
+            return self._functions.symbolic(self.entry["functions"][key])
+        except KeyError:
+            raise UnknownNameError(f"{self.name} has no {kind} {name!r}") from None
 
     def defaults(self) -> dict[str, Any]:
         return {

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from grace_dsl.cli.grace import main as grace_main
 from grace_dsl.perception.camera import DepthNoise
 from grace_dsl.perception.dataset import generate_dataset
 from grace_dsl.perception.errors import PerceptionError
@@ -56,10 +55,10 @@ def test_noise_free_points_lie_on_the_instance_at_the_ground_truth_pose(lib) -> 
 def test_dataset_shards_are_the_same_with_one_or_two_workers(lib, tmp_path) -> None:
     config = ViewConfig(points=128)
     one = generate_dataset(
-        lib, ["StraightHandle"], 10, tmp_path / "a", seed=3, config=config, shard_size=6
+        lib, ["StraightHandle"], 5, tmp_path / "a", seed=3, config=config, shard_size=3
     )
     two = generate_dataset(
-        lib, ["StraightHandle"], 10, tmp_path / "b", seed=3, config=config, workers=2, shard_size=6
+        lib, ["StraightHandle"], 5, tmp_path / "b", seed=3, config=config, workers=2, shard_size=3
     )
     assert [p.name for p in one] == ["StraightHandle-0000.npz", "StraightHandle-0001.npz"]
     for p, q in zip(one, two):
@@ -68,8 +67,8 @@ def test_dataset_shards_are_the_same_with_one_or_two_workers(lib, tmp_path) -> N
         for k in a.arrays:
             np.testing.assert_array_equal(a.arrays[k], b.arrays[k])
     shard = read_shard(one[0])
-    assert shard.arrays["points"].shape == (6, 128, 3)
-    assert shard.arrays["params"].shape == (6, len(shard.param_names))
+    assert shard.arrays["points"].shape == (3, 128, 3)
+    assert shard.arrays["params"].shape == (3, len(shard.param_names))
     views = shard.views()
     assert views[0].params == dict(zip(shard.param_names, shard.arrays["params"][0].tolist()))
 
@@ -83,13 +82,3 @@ def test_bad_inputs_are_typed_errors(lib, tmp_path) -> None:
     bad.write_bytes(b"not a zip")
     with pytest.raises(PerceptionError, match="not a view shard"):
         read_shard(bad)
-
-
-@pytest.mark.slow
-def test_grace_data_gen_writes_shards_and_refuses_an_unknown_concept(tmp_path, capsys) -> None:
-    out = tmp_path / "d"
-    args = ["data", "gen", "RoundKnob", "-n", "2", "--points", "64", "--workers", "1", "-o"]
-    assert grace_main([*args, str(out)]) == 0
-    assert read_shard(out / "RoundKnob-0000.npz").arrays["points"].shape == (2, 64, 3)
-    assert grace_main(["data", "gen", "NoSuchThing", "-n", "1", "-o", str(out)]) == 1
-    assert "NoSuchThing" in capsys.readouterr().err

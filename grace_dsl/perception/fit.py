@@ -1,0 +1,463 @@
+"""Analysis by synthesis: a concept's parameters, joints and 6-DoF pose fitted to a partial cloud.
+
+The loss is robust (Cauchy, scale ``CAUCHY``) in the compiled concept's signed distance at the
+observed points, plus a free-space term: the camera saw through the space in front of every
+point, so the surface must not come nearer along those rays (the distance at points a little
+toward the camera must not be negative). A weak prior keeps parameters the view cannot see
+(the back of a cabinet) near their start. Levenberg-Marquardt on exact derivatives (the
+distance is one CasADi graph of parameters, joints and pose, ``perception.model``) minimizes
+it; parameters stay in their typical ranges and joints in their limits (steps are projected),
+and a step after which the concept's requirements fail is refused like one that raises the cost.
+
+The start comes from ``init`` (a learned estimate) or from a coarse global search of its own:
+similarity ICP of the cloud against the surface of the default instance, from rotations that
+look at the concept's front from the upper hemisphere (a robot's usual view; ``pose_hint``
+replaces them), lengths scaled by the ICP's scale.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from grace_dsl.perception.camera import look_at
+from grace_dsl.perception.model import SdfModel, sdf_model
+from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.runtime.instance import Instance
+from grace_dsl.runtime.library import Concept
+from grace_dsl.runtime.shapes import ShapeTree
+
+CAUCHY = 0.004  # m: the robust scale (a 2 mm sensor's points lie well inside it)
+# m toward the camera from an observed point: free space (a handle standing off a front)
+FREE_STEPS = tuple(np.geomspace(0.006, 0.12, 6).tolist())
+FRONT_RAYS = 128
+FREE_WEIGHT = 0.5
+PRIOR_WEIGHT = 0.02  # per parameter, in units of its range
+SILHOUETTE = 4.0  # spacings: a ray farther than this from every observed ray saw nothing
+FREE_RAYS = 200
+FREE_DEPTHS = 12
+ICP_POINTS = 256
+SCREEN_ITERATIONS = 6  # per global start, before the best one is refined to the end
+JOINT_STARTS = (0.0, 0.5, 0.9)  # of each joint's range
+MODEL_POINTS = 1500
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Where the fit ended: the instance in the frame of the points, and how well it fits."""
+
+    params: dict[str, Any]  # every parameter, as ``Concept.instantiate`` takes them
+    theta: np.ndarray  # the float entries of p
+    joints: dict[str, float]
+    pose: np.ndarray  # concept frame in the points' frame
+    residual: float  # robust mean |distance| (m) of the points to the fitted surface
+    inliers: float  # share of points within 3 CAUCHY of the surface
+    iterations: int
+
+
+def rotation_exp(w: np.ndarray) -> np.ndarray:
+    """Rodrigues: the rotation by the rotation vector ``w``."""
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / angle
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+def _transform(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    return pts @ m[:3, :3].T + m[:3, 3]
+
+
+def _inv(m: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
+
+
+# -- global initialization ------------------------------------------------------------------
+
+
+def candidate_rotations(
+    n_azimuth: int = 5, elevations: tuple[float, ...] = (20, 45)
+) -> list[np.ndarray]:
+    """Concept-in-camera rotations of cameras looking at the concept's front from the upper
+    hemisphere (azimuth within +-60 deg of +z), as ``perception.views`` draws them."""
+    out = []
+    for e in elevations:
+        for a in np.linspace(-60, 60, n_azimuth):
+            er, ar = math.radians(e), math.radians(a)
+            eye = np.array([math.cos(er) * math.sin(ar), math.sin(er), math.cos(er) * math.cos(ar)])
+            out.append(_inv(look_at(eye, np.zeros(3)))[:3, :3])
+    return out
+
+
+def icp_similarity(
+    data: np.ndarray, model: np.ndarray, tree: cKDTree, rot: np.ndarray, iterations: int = 20
+) -> tuple[np.ndarray, float, float]:
+    """Similarity ICP of ``data`` (points frame) onto ``model`` (concept frame) from ``rot``
+    (concept in points frame): returns (pose: concept in points frame, scale of the concept,
+    trimmed RMS distance). Each step matches every data point to its nearest model point
+    (partial data against the whole model) and solves Umeyama's closed form."""
+    r = rot.T  # points frame -> concept frame
+    s = 1.0
+    mc, dc = model.mean(axis=0), data.mean(axis=0)
+    t = mc - r @ dc
+    err = math.inf
+    for _ in range(iterations):
+        moved = s * (data @ r.T) + t
+        dist, j = tree.query(moved)
+        keep = dist <= np.quantile(dist, 0.9)
+        a, b = data[keep], model[j[keep]]
+        ma, mb = a.mean(axis=0), b.mean(axis=0)
+        a0, b0 = a - ma, b - mb
+        u, sv, vt = np.linalg.svd(b0.T @ a0)
+        d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
+        r = u @ d @ vt
+        s = float(np.clip(np.trace(np.diag(sv) @ d) / (a0 * a0).sum(), 0.2, 5.0))
+        t = mb - s * r @ ma
+        err = float(np.sqrt(np.mean(dist[keep] ** 2)))
+    # concept point x = s R p + t  ->  p = R^T (x - t) / s: concept (scaled by 1/s) in points frame
+    pose = np.eye(4)
+    pose[:3, :3] = r.T
+    pose[:3, 3] = -r.T @ t / s
+    return pose, 1.0 / s, err
+
+
+def scaled_params(concept: Concept, base: Mapping[str, Any], scale: float) -> dict[str, Any]:
+    """``base`` with every length multiplied by ``scale`` and clipped to its typical range."""
+    out = dict(base)
+    for s in concept.params:
+        if s.kind in ("num", "vec") and s.dim == "length" and s.lo is not None:
+            v = np.clip(np.asarray(base[s.name], float) * scale, s.lo, s.hi)
+            out[s.name] = float(v) if s.kind == "num" else tuple(map(float, v))
+    return out
+
+
+def joint_starts(
+    inst: Instance, fractions: tuple[float, ...] = JOINT_STARTS
+) -> list[dict[str, float]]:
+    """Joint states to start from: every joint at each fraction of its range (closed first)."""
+    limits = inst.joint_limits()
+    if not limits:
+        return [{}]
+    out = []
+    for f in fractions:
+        out.append(
+            {
+                n: float(max(lo, -math.pi) + f * (min(hi, math.pi) - max(lo, -math.pi)))
+                for n, (lo, hi) in limits.items()
+            }
+        )
+    return out
+
+
+def global_init(
+    concept: Concept,
+    points: np.ndarray,
+    base: Mapping[str, Any] | None = None,
+    rotations: list[np.ndarray] | None = None,
+    seed: int = 0,
+    joints: Mapping[str, float] | None = None,
+) -> list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]]:
+    """Starts for the fit, best first: (ICP error, pose, parameters, joints)."""
+    base = concept.instantiate().params if base is None else dict(base)
+    inst = concept.instantiate(params=base)
+    rng = np.random.default_rng(seed)
+    data = points[rng.choice(len(points), min(ICP_POINTS, len(points)), replace=False)]
+    starts = []
+    for state in [dict(joints)] if joints else joint_starts(inst):
+        model = (
+            inst.with_joints(state).sample_surface(MODEL_POINTS, seed=seed)
+            if state
+            else (inst.sample_surface(MODEL_POINTS, seed=seed))
+        )
+        tree = cKDTree(model)
+        for rot in candidate_rotations() if rotations is None else rotations:
+            pose, scale, err = icp_similarity(data, model, tree, rot)
+            starts.append((err / scale, pose, scaled_params(concept, base, scale), state))
+    starts.sort(key=lambda s: s[0])
+    return starts
+
+
+# -- free space ------------------------------------------------------------------------------
+
+
+def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Points the camera saw through, where the fitted surface must not be: a little in front
+    of every observed point, and along the rays just outside the cloud's outline (rays that met
+    nothing within the cloud's depth range: the silhouette). The outline is read off the rays'
+    gnomonic projection, which needs no intrinsics: a ray is free when no observed ray lies
+    within ``SILHOUETTE`` times their typical spacing."""
+    rays = points - camera
+    dist = np.linalg.norm(rays, axis=1)
+    unit = rays / np.maximum(dist, 1e-9)[:, None]
+    rng = np.random.default_rng(seed)
+    some = rng.choice(len(points), min(FRONT_RAYS, len(points)), replace=False)
+    front = [points[some] - s * unit[some] for s in FREE_STEPS]
+    c = unit.mean(axis=0)
+    c /= np.linalg.norm(c)
+    e1 = np.cross(c, [0.0, 1.0, 0.0] if abs(c[1]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(c, e1)
+    cos = unit @ c
+    if np.any(cos < 0.2):  # the cloud spans too wide a view for one projection
+        return np.concatenate(front)
+    a = np.stack([unit @ e1 / cos, unit @ e2 / cos], axis=1)
+    tree = cKDTree(a)
+    spacing = float(np.median(tree.query(a, k=2)[0][:, 1]))
+    lo, hi = a.min(axis=0), a.max(axis=0)
+    margin = 0.3 * (hi - lo) + 4 * spacing
+    step = max(spacing, float((hi - lo).max()) / 50)
+    gu = np.arange(lo[0] - margin[0], hi[0] + margin[0], step)
+    gv = np.arange(lo[1] - margin[1], hi[1] + margin[1], step)
+    grid = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
+    free = grid[tree.query(grid)[0] > SILHOUETTE * max(spacing, step / 2)]
+    if len(free) > FREE_RAYS:
+        free = free[rng.choice(len(free), FREE_RAYS, replace=False)]
+    dirs = c + free[:, :1] * e1 + free[:, 1:] * e2
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    depths = np.linspace(dist.min() - 0.3 * extent, dist.max() + 0.3 * extent, FREE_DEPTHS)
+    along = camera + (dirs[:, None, :] * depths[None, :, None]).reshape(-1, 3)
+    return np.concatenate([*front, along])
+
+
+# -- local refinement -----------------------------------------------------------------------
+
+
+@dataclass
+class _State:
+    theta: np.ndarray
+    q: np.ndarray
+    pose: np.ndarray
+    cost: float = math.inf
+
+
+def feasible_instance(concept: Concept, params: Mapping[str, Any]) -> Instance:
+    """An instance at ``params``, or, when they break a requirement (a start from a network or
+    a scaled default can), at the first of them pulled toward the defaults that does not."""
+    try:
+        return concept.instantiate(params=params)
+    except ParameterError:
+        pass
+    defaults = concept.instantiate().params
+    for a in (0.9, 0.75, 0.5, 0.25):
+        mixed = dict(params)
+        for s in concept.params:
+            if s.kind in ("num", "vec") and s.name in params:
+                v = np.asarray(defaults[s.name], float) + a * (
+                    np.asarray(params[s.name], float) - np.asarray(defaults[s.name], float)
+                )
+                mixed[s.name] = float(v) if s.kind == "num" else tuple(map(float, v))
+        try:
+            return concept.instantiate(params=mixed)
+        except ParameterError:
+            continue
+    return concept.instantiate(
+        params={k: v for k, v in params.items() if k not in defaults}
+        | {k: defaults[k] for k in defaults if k in params}
+    )
+
+
+class Fitter:
+    """Levenberg-Marquardt on one concept with its discrete parameters fixed."""
+
+    def __init__(self, concept: Concept, params: Mapping[str, Any], joints: Mapping[str, float]):
+        self.concept = concept
+        inst = feasible_instance(concept, params)
+        if joints:
+            inst = inst.with_joints(dict(joints))
+        self.pfix = inst.p.copy()
+        self.model: SdfModel = sdf_model(concept, tuple(ShapeTree(inst).shapes))
+        idx = list(self.model.float_index)
+        lo, hi = [], []
+        for s in concept.params:
+            if s.kind in ("num", "vec"):
+                lo += list(np.atleast_1d(s.lo))
+                hi += list(np.atleast_1d(s.hi))
+        self.lo, self.hi = np.array(lo, float), np.array(hi, float)
+        self.span = np.maximum(self.hi - self.lo, 1e-6)
+        self.theta0 = inst.p[idx].copy()
+        self.q0 = inst.q.copy()
+        self.present = [concept.joint_index[n] for n in inst.joints]
+
+    def _p(self, theta: np.ndarray) -> np.ndarray:
+        p = self.pfix.copy()
+        p[list(self.model.float_index)] = theta
+        return p
+
+    def feasible(self, theta: np.ndarray) -> bool:
+        held = np.asarray(self.concept.function("instance_checks")(self._p(theta))[0]).ravel()
+        return bool(np.all(held == 1.0))
+
+    def limits(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = self.concept.function("joint_limits")(self._p(theta))
+        lo, hi = np.asarray(lo, float).ravel(), np.asarray(hi, float).ravel()
+        return np.maximum(lo, -math.pi), np.minimum(hi, math.pi)
+
+    def residuals(
+        self, st: _State, y: np.ndarray, free: np.ndarray, with_jac: bool
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Weighted residuals (and Jacobian) of data, free-space and prior terms at ``st``, with
+        the points already in the frame of ``st.pose``; the third output is the data distances."""
+        m = self.model
+        pfix, w0 = self._p(st.theta), np.zeros(6)
+        pts = np.concatenate([y, free])
+        if with_jac:
+            d, g = m.gradient.batch(st.theta, pfix, st.q, w0, pts)
+            d, g = np.asarray(d).reshape(-1), np.asarray(g).reshape(len(pts), -1)
+        else:
+            d, g = np.asarray(m.value.batch(st.theta, pfix, st.q, w0, pts)).reshape(-1), None
+        n = len(y)
+        dd, df = d[:n], d[n:]
+        # Cauchy as IRLS: sqrt of the weight times the distance
+        wd = 1.0 / np.sqrt(1.0 + (dd / CAUCHY) ** 2)
+        wf = FREE_WEIGHT * (df < 0)
+        scale = 1.0 / math.sqrt(n)
+        prior = PRIOR_WEIGHT * (st.theta - self.theta0) / self.span
+        r = np.concatenate([scale * wd * dd, scale * wf * df, prior])
+        jac = None
+        if g is not None:
+            jp = np.zeros((len(prior), g.shape[1]))
+            jp[:, : len(prior)] = np.diag(PRIOR_WEIGHT / self.span)
+            jac = np.concatenate([scale * wd[:, None] * g[:n], scale * wf[:, None] * g[n:], jp])
+        return r, jac, dd
+
+    def run(
+        self, points: np.ndarray, pose: np.ndarray, camera: np.ndarray, iterations: int = 30
+    ) -> FitResult:
+        """Refine from ``pose`` (concept in the points' frame) and the starting parameters."""
+        st = _State(self.theta0.copy(), self.q0.copy(), pose.copy())
+        free_world = free_space(points, camera)
+        mu, nt, nq = 1e-3, len(st.theta), len(st.q)
+        frame = _inv(st.pose)
+        r, jac, dd = self.residuals(
+            st, _transform(frame, points), _transform(frame, free_world), True
+        )
+        st.cost = float(r @ r)
+        done = 0
+        for it in range(1, iterations + 1):
+            done = it
+            assert jac is not None
+            jtj, jtr = jac.T @ jac, jac.T @ r
+            diag = np.maximum(np.diag(jtj), 1e-12)
+            for _ in range(8):
+                step = -np.linalg.solve(jtj + mu * np.diag(diag), jtr)
+                trial = self._step(st, step, nt, nq)
+                if trial is not None:
+                    frame = _inv(trial.pose)
+                    y, f = _transform(frame, points), _transform(frame, free_world)
+                    r2, _, _ = self.residuals(trial, y, f, False)
+                    trial.cost = float(r2 @ r2)
+                    if trial.cost < st.cost:
+                        break
+                mu *= 10
+            else:
+                break
+            gain = st.cost - trial.cost
+            st, mu = trial, max(mu / 3, 1e-7)
+            r, jac, dd = self.residuals(st, y, f, True)
+            if gain < 1e-10 * max(st.cost, 1e-12):
+                break
+        frame = _inv(st.pose)
+        _, _, dd = self.residuals(
+            st, _transform(frame, points), _transform(frame, free_world), False
+        )
+        return self._result(st, dd, done)
+
+    def _step(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
+        theta = np.clip(st.theta + step[:nt], self.lo, self.hi)
+        if not self.feasible(theta):
+            return None
+        q = st.q.copy()
+        if nq:
+            lo, hi = self.limits(theta)
+            q = np.clip(st.q + step[nt : nt + nq], lo, hi)
+        w = step[nt + nq :]
+        delta = np.eye(4)
+        delta[:3, :3], delta[:3, 3] = rotation_exp(w[:3]), w[3:]
+        return _State(theta, q, st.pose @ delta)
+
+    def _result(self, st: _State, dd: np.ndarray, iterations: int) -> FitResult:
+        p = self._p(st.theta)
+        params = {s.name: s.decode(p[s.offset : s.offset + s.size]) for s in self.concept.params}
+        names = self.concept.moving_joints
+        joints = {names[i]: float(st.q[i]) for i in self.present}
+        a = np.abs(dd)
+        robust = float(np.mean(np.minimum(a, 3 * CAUCHY)))  # far outliers count as 3 scales
+        return FitResult(
+            params,
+            st.theta.copy(),
+            joints,
+            st.pose,
+            robust,
+            float(np.mean(a < 3 * CAUCHY)),
+            iterations,
+        )
+
+
+def fit(
+    concept: Concept,
+    points: np.ndarray,
+    *,
+    camera: np.ndarray | None = None,
+    pose_hint: np.ndarray | None = None,
+    init: Mapping[str, Any] | None = None,
+    init_joints: Mapping[str, float] | None = None,
+    starts: int = 6,
+    iterations: int = 20,
+    seed: int = 0,
+) -> FitResult:
+    """Fit ``concept`` to ``points`` (N, 3): the best of ``starts`` refinements.
+
+    ``camera`` is the camera's position in the points' frame (default the origin: points in the
+    camera frame), ``pose_hint`` a 4x4 concept pose to start from (skips the rotation search),
+    ``init`` parameter values to start from (a learned estimate: every parameter, or some)."""
+    base = concept.instantiate().params
+    if init:
+        base.update(init)
+    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    hint = None if pose_hint is None else np.asarray(pose_hint, float)
+    if hint is not None and init:
+        cands = [(0.0, hint, base, dict(init_joints or {}))]
+    else:
+        rots = None if hint is None else [hint[:3, :3]]
+        cands = global_init(concept, points, base, rots, seed, init_joints)
+    tried: list[FitResult] = []
+    short = iterations if len(cands) == 1 else SCREEN_ITERATIONS
+    for _, pose, params, joints in cands[:starts]:
+        try:
+            fitter = Fitter(concept, params, joints)
+        except ParameterError:  # a scaled start that breaks a requirement
+            fitter = Fitter(concept, base, joints)
+        tried.append(fitter.run(points, pose, cam, short))
+    best = min(tried, key=_score)
+    if short < iterations:  # continue the best screened start
+        best = Fitter(concept, best.params, best.joints).run(points, best.pose, cam, iterations)
+    return best
+
+
+def _score(r: FitResult) -> float:
+    return r.residual + 0.01 * (1 - r.inliers)
+
+
+def fitted_instance(concept: Concept, result: FitResult) -> Instance:
+    """The fitted instance, posed in the points' frame."""
+    inst = concept.instantiate(params=result.params, pose=result.pose)
+    return inst.with_joints(result.joints) if result.joints else inst
+
+
+def fitted_instance_of(concept: Concept, est: Any) -> Instance:
+    """The instance an ``Estimate`` describes, posed in the points' frame."""
+    from grace_dsl.perception.views import join_params
+
+    defaults = concept.instantiate().params  # the non-float ones an Estimate does not carry
+    fixed = {s.name: defaults[s.name] for s in concept.params if s.kind not in ("num", "vec")}
+    inst = concept.instantiate(params=join_params(concept, est.params, fixed), pose=est.pose)
+    return inst.with_joints(est.joints) if est.joints else inst
