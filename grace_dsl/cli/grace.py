@@ -34,11 +34,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
     )
     from grace_dsl.cli.parse_cmd import add_parse_arguments, run_parse  # noqa: I001
+    from grace_dsl.cli.train_cmd import register as register_train
 
     add_parse_arguments(sub.add_parser("parse", help="an instruction in a scene -> its plan"))
+    register_train(sub)  # grace train
     add_data_arguments(sub.add_parser("data", help="synthetic views for perception (data gen)"))
     add_estimate_arguments(sub.add_parser("estimate", help="fit a concept to a partial cloud"))
     args = parser.parse_args(argv)
+    if hasattr(args, "handler"):  # subcommands that carry their own handler
+        return int(args.handler(args))
     if args.command == "parse":
         return run_parse(args)
     if args.command == "data":

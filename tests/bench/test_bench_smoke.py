@@ -24,6 +24,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_geometry.py",
         "bench_grasp_ik.py",
         "bench_ik.py",
+        "bench_learned.py",
         "bench_perception.py",
         "bench_plan.py",
         "bench_rank_agreement.py",
