@@ -18,6 +18,7 @@ gravity, their joints given the export's base friction, their collision pieces t
 from __future__ import annotations
 
 import math
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -94,7 +95,9 @@ class MultiWorld:
         park[:3, 3] = PARK
         park[:3, :3] = np.diag([1.0, -1.0, -1.0])  # pointing down
         hand_xml, hand = _hand_spec(self.gripper, park)
-        model, data = self.scene.compile(extra=[mujoco.MjSpec.from_string(hand_xml)])
+        with warnings.catch_warnings():  # the hand keeps its own names (World reads them)
+            warnings.filterwarnings("ignore", "Attaching a spec with an empty prefix")
+            model, data = self.scene.compile(extra=[mujoco.MjSpec.from_string(hand_xml)])
         free = model.joint("hand_free")
         dof = int(free.dofadr[0])
         model.dof_damping[dof : dof + 3] = LINEAR_DAMPING
@@ -150,14 +153,16 @@ class MultiWorld:
         option: Option,
         goal: float | None = None,
         seconds: float = 20.0,
+        inst: Instance | None = None,
     ) -> Act:
         """Carry out ``action`` (moving ``joint`` the ``sign`` way) on ``obj`` with ``option``
         (from ``instance(obj).rank``) until the joint reaches ``goal`` (default: the episode's
         open or close goal), in at most ``seconds`` simulated seconds; the hand then lets go and
-        backs off. The world keeps the result."""
+        backs off. The world keeps the result. ``inst``: the agent's model of the object, posed
+        and at the measured joint values (default: the true one, ``instance(obj)``)."""
         if sign not in (1.0, -1.0):
             raise ParameterError(f"sign must be +1 (opening) or -1 (closing), got {sign!r}")
-        inst = self.instance(obj)
+        inst = self.instance(obj) if inst is None else inst
         q0 = self.q(obj, joint)
         view = replace(self.world, joint_qpos=self._addresses(obj))
         began = self.world.time
