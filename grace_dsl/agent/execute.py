@@ -127,6 +127,7 @@ class RunResult:
         return {
             "instruction": self.plan.instruction,
             "success": self.success,
+            "plan": self.plan.to_json(),
             "steps": [{**asdict(s), "reason": s.reason, "option": s.option} for s in self.steps],
             "final": list(self.final),
             "joints": self.joints,
@@ -264,7 +265,8 @@ class Executor:
         except GraceError:
             return None
         fresh = [o for o in options if o.grasp not in tried]
-        return (fresh or options or [None])[0]
+        best = fresh or options
+        return best[0] if best else None
 
 
 def aim(
