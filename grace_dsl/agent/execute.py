@@ -160,6 +160,7 @@ class Executor:
         self.objects = {o.name: o for o in scene.objects}
         truth = [(o.name, self._instance(o, o.params)) for o in scene.objects]
         self.world = MultiWorld(truth, self.gripper, camera=camera)
+        self._limits = {name: inst.joint_limits() for name, inst in truth}
 
     def _instance(self, obj: SceneObject, params: Mapping[str, Any]) -> Instance:
         try:
@@ -185,7 +186,15 @@ class Executor:
             self.check(sub)
         steps = tuple(self.step(i, sub) for i, sub in enumerate(plan.subtasks))
         joints = {n: self.world.joints(n) for n in self.objects}
-        return RunResult(plan, steps, joints, held(plan.subtasks, joints))
+        at = {n: {j: self.measured(n, j) for j in js} for n, js in joints.items()}
+        return RunResult(plan, steps, joints, held(plan.subtasks, at))
+
+    def measured(self, obj: str, joint: str) -> float:
+        """The joint's measured value clipped into its range: a part pressed against its stop
+        reads a hair past it (MuJoCo's joint limits are soft), and it is at the stop."""
+        q = self.world.q(obj, joint)
+        lo, hi = self._limits[obj].get(joint, (q, q))
+        return min(max(q, lo), hi)
 
     def check(self, sub: SubTask) -> None:
         """Raise ``ExecutionError`` if ``sub`` does not fit the scene."""
@@ -221,7 +230,7 @@ class Executor:
         self.check(sub)
         cond = sub.condition
         q_start = self.world.q(sub.object, sub.joint)
-        if cond.holds(self.world.q(cond.object, cond.joint)):
+        if cond.holds(self.measured(cond.object, cond.joint)):
             held_ = Attempt("", q_start, q_start, None, True, "already_held", "held before acting")
             return StepResult(index, sub, (held_,), q_start, q_start, True)
         sign = float(self.library[sub.concept].actions[sub.action].sign)
@@ -254,7 +263,7 @@ class Executor:
         act = self.world.act(
             sub.object, sub.action, sub.joint, sign, option, goal, self.seconds, inst=inst
         )
-        verified = sub.condition.holds(self.world.q(sub.condition.object, sub.condition.joint))
+        verified = sub.condition.holds(self.measured(sub.condition.object, sub.condition.joint))
         reason, detail = ("", "") if verified else _why(act.outcome, q0, act.q_after, sign)
         return Attempt(label, q0, act.q_after, goal, verified, reason, detail, act.sim_seconds)
 
