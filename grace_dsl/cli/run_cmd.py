@@ -114,6 +114,32 @@ def _run(args: Any) -> int:
     return 0 if result.success else FAILED
 
 
+def run_suite(args: Any) -> int:
+    """``grace bench --suite tasks``: the instruction suite's parse accuracy and task success
+    (``grace_dsl.agent.task_bench``), the table printed (or the summary with ``--json``) and
+    ``tasks.json`` written to ``--out``. Exit 0 whatever the rates, 1 on a bad setup."""
+    from grace_dsl.agent.task_bench import run_tasks
+    from grace_dsl.runtime.library import load_library
+
+    if args.agent != "gripper" or args.mode != "oracle":
+        error("--suite tasks runs with --agent gripper --mode oracle only (the others: not built)")
+        return 2
+    try:
+        report = run_tasks(load_library())
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "tasks.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
+    except (GraceError, OSError) as exc:
+        error(str(exc))
+        return 1
+    if args.json:
+        print_json(report.to_json())
+    else:
+        print_text(report.table())
+        print_text(f"tasks: {out / 'tasks.json'}")
+    return 0
+
+
 def parse(args: Any, scene: SceneSpec) -> Plan:
     """The instruction's plan from the chosen parser."""
     if not args.instruction:
