@@ -177,8 +177,9 @@ def execute(
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     # a closed part is held pressed against its stop while the hand lets go; a part sent to an
     # explicit goal is held there (held where the hand is, it springs back and coasts away)
-    hold = follower.pose_at(goal) if (task.sign < 0 or aimed) and not slipped else None
-    if aimed and hold is not None:
+    reached = done_at is not None and (world.q(task.joint) - done_at) * task.sign >= 0
+    hold = follower.pose_at(goal) if (task.sign < 0 or reached) and not slipped else None
+    if reached and hold is not None:
         _still(world, task.joint, hold)
     return _finish(world, task, arrived, slipped, "", hold=hold)
 
