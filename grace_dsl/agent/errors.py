@@ -18,3 +18,8 @@ class SceneFileError(GraceError, ValueError):
 
 class ExecutionError(GraceError, RuntimeError):
     """A plan could not be executed (not a failed sub-task, which is a result, but a bad plan)."""
+
+
+class VLMError(GraceError, RuntimeError):
+    """The vision-language model's server could not be reached or configured (not a bad reply,
+    which is re-asked and then a ``ParseError``)."""

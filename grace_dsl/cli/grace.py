@@ -31,10 +31,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_bench_arguments(
         sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
     )
+    from grace_dsl.cli.parse_cmd import add_parse_arguments, run_parse  # noqa: I001
     from grace_dsl.cli.run_cmd import add_run_arguments, run_run
 
+    add_parse_arguments(sub.add_parser("parse", help="an instruction in a scene -> its plan"))
     add_run_arguments(sub.add_parser("run", help="carry out an instruction in a simulated scene"))
     args = parser.parse_args(argv)
+    if args.command == "parse":
+        return run_parse(args)
     if args.command == "run":
         return run_run(args)
     if args.command == "plan":

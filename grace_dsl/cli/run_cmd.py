@@ -21,22 +21,17 @@ import html
 import io
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.agent.errors import ExecutionError, ParseError, SceneFileError
-from grace_dsl.agent.plan import (
-    Condition,
-    ObjectNode,
-    Plan,
-    SceneObject,
-    SceneSpec,
-    SubTask,
-    Target,
-)
+from grace_dsl.agent.errors import ExecutionError, ParseError
+from grace_dsl.agent.plan import Condition, ObjectNode, Plan, SceneSpec, SubTask, Target
 from grace_dsl.cli.output import error, print_json, print_table, print_text
 from grace_dsl.runtime.errors import GraceError
+
+if TYPE_CHECKING:
+    from grace_dsl.runtime.library import Library
 
 FAILED = 3  # exit code: the run worked, some sub-task's condition did not hold
 
@@ -47,7 +42,11 @@ class NotBuiltError(GraceError):
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("instruction", nargs="?", default="", help='e.g. "open the top drawer"')
-    p.add_argument("--scene", required=True, help="a scene file (JSON or YAML) or shipped name")
+    p.add_argument(
+        "--scene",
+        required=True,
+        help="a scene file (JSON or YAML) or a shipped scene: kitchen, hall, bathroom",
+    )
     p.add_argument("--parser", choices=("offline", "vlm"), default="offline")
     p.add_argument("--plan", help="a plan JSON file to execute instead of parsing")
     p.add_argument("--agent", choices=("gripper", "arm"), default="gripper")
@@ -74,6 +73,7 @@ def run_run(args: Any) -> int:
 
 def _run(args: Any) -> int:
     from grace_dsl.agent.execute import Executor
+    from grace_dsl.agent.scene_file import load_scene
     from grace_dsl.runtime.gripper import Gripper
     from grace_dsl.runtime.library import load_library
     from grace_dsl.sim.camera import Camera
@@ -85,9 +85,8 @@ def _run(args: Any) -> int:
             "--mode estimated needs a perception estimator (agent.execute.ParamSource); "
             "only --mode oracle runs today"
         )
-    scene = load_scene(args.scene)
     library = load_library()
-    plan = load_plan(Path(args.plan)) if args.plan else parse(args, scene)
+    scene = load_scene(args.scene, library)
     executor = Executor(
         scene,
         library,
@@ -96,9 +95,11 @@ def _run(args: Any) -> int:
         seconds=args.seconds,
         camera=Camera(width=640, height=480),
     )
-    before = executor.world.render().rgb if args.png or args.html else None
+    shown = args.png or args.html or (args.parser == "vlm" and not args.plan)
+    before = executor.world.render().rgb if shown else None
+    plan = load_plan(Path(args.plan)) if args.plan else parse(args, scene, library, before)
     result = executor.run(plan)
-    after = executor.world.render().rgb if before is not None else None
+    after = executor.world.render().rgb if args.png or args.html else None
     if args.png:
         out = Path(args.png)
         out.mkdir(parents=True, exist_ok=True)
@@ -140,41 +141,22 @@ def run_suite(args: Any) -> int:
     return 0
 
 
-def parse(args: Any, scene: SceneSpec) -> Plan:
-    """The instruction's plan from the chosen parser."""
+def parse(args: Any, scene: SceneSpec, lib: Library, image: np.ndarray | None) -> Plan:
+    """The instruction's plan from the chosen parser (the VLM is shown the scene camera's
+    picture of the world before anything moves)."""
     if not args.instruction:
         raise ParseError('give an instruction ("open the top drawer") or --plan FILE')
-    import importlib
+    parser: Any
+    if args.parser == "vlm":
+        from grace_dsl.agent.vlm import VLMParser
 
-    try:
-        offline = importlib.import_module("grace_dsl.agent.offline")
-    except ImportError:
-        raise NotBuiltError(
-            f"the {args.parser} parser is not in this build; pass a plan with --plan FILE"
-        ) from None
-    plan: Plan = offline.OfflineParser().parse(args.instruction, scene)
+        parser = VLMParser(lib)
+    else:
+        from grace_dsl.agent.offline import OfflineParser
+
+        parser = OfflineParser(lib)
+    plan: Plan = parser.parse(args.instruction, scene, image=image)
     return plan
-
-
-def load_scene(arg: str) -> SceneSpec:
-    """A scene file (JSON) as a ``SceneSpec``."""
-    path = Path(arg)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        objects = tuple(
-            SceneObject(
-                name=o["name"],
-                concept=o["concept"],
-                params=dict(o.get("params", {})),
-                position=_triple(o.get("position", (0.0, 0.0, 0.0))),
-                yaw=float(o.get("yaw", 0.0)),
-                joints={k: float(v) for k, v in o.get("joints", {}).items()},
-            )
-            for o in data["objects"]
-        )
-    except (OSError, KeyError, TypeError, ValueError) as exc:
-        raise SceneFileError(f"{arg}: not a readable scene file ({exc})") from exc
-    return SceneSpec(str(data.get("name", path.stem)), objects, str(data.get("description", "")))
 
 
 def load_plan(path: Path) -> Plan:
@@ -212,11 +194,6 @@ def plan_from_json(data: dict[str, Any]) -> Plan:
         for o in data.get("objects", ())
     )
     return Plan(data["instruction"], objects, subtasks, tuple(data.get("notes", ())))
-
-
-def _triple(v: Any) -> tuple[float, float, float]:
-    x, y, z = (float(c) for c in v)
-    return (x, y, z)
 
 
 def _print(result: Any) -> None:
