@@ -82,3 +82,5 @@ def test_bad_input_and_modes_not_built(files: Path, capsys: pytest.CaptureFixtur
     assert main(["run", "--scene", str(files / "nope.json"), "--plan", scene]) == 1
     assert main(["run", "--scene", scene, "--agent", "arm", "--plan", scene]) == 2
     assert "not built" in capsys.readouterr().err
+    assert main(["bench", "--suite", "tasks", "--agent", "arm"]) == 2  # the suite's branch
+    assert "--suite tasks" in capsys.readouterr().err
