@@ -18,7 +18,6 @@ gravity, their joints given the export's base friction, their collision pieces t
 from __future__ import annotations
 
 import math
-import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -41,6 +40,7 @@ from grace_dsl.sim.protocol import TaskAction
 from grace_dsl.sim.scene import CLEARANCE, Frame, Scene
 from grace_dsl.sim.world import ANGULAR_ARMATURE, ANGULAR_DAMPING, LINEAR_DAMPING, World
 
+HAND = "hand/"  # the prefix of the hand's names in the world
 PARK = np.array([0.0, 0.0, 3.0])  # m: where the hand waits, far above every object
 
 
@@ -95,10 +95,14 @@ class MultiWorld:
         park[:3, 3] = PARK
         park[:3, :3] = np.diag([1.0, -1.0, -1.0])  # pointing down
         hand_xml, hand = _hand_spec(self.gripper, park)
-        with warnings.catch_warnings():  # the hand keeps its own names (World reads them)
-            warnings.filterwarnings("ignore", "Attaching a spec with an empty prefix")
-            model, data = self.scene.compile(extra=[mujoco.MjSpec.from_string(hand_xml)])
-        free = model.joint("hand_free")
+        model, data = self.scene.compile(extra=[(mujoco.MjSpec.from_string(hand_xml), HAND)])
+        hand = replace(
+            hand,
+            body=HAND + hand.body,
+            fingers=tuple(HAND + f for f in hand.fingers),
+            actuators=tuple(HAND + a for a in hand.actuators),
+        )
+        free = model.joint(HAND + "hand_free")
         dof = int(free.dofadr[0])
         model.dof_damping[dof : dof + 3] = LINEAR_DAMPING
         model.dof_damping[dof + 3 : dof + 6] = ANGULAR_DAMPING
@@ -111,7 +115,8 @@ class MultiWorld:
                 for j in exported.joints
                 if j.kind != "fixed" and j.source in inst.concept.joint_index
             }
-        self.world = World(model, data, hand, {}, model.body("hand").id, impedance or Impedance())
+        body = model.body(hand.body).id
+        self.world = World(model, data, hand, {}, body, impedance or Impedance())
         self.world.set_fingers(0.0, at_once=True)
         mujoco.mj_forward(model, data)
 

@@ -139,8 +139,8 @@ class World:
     def place_hand(self, pose: np.ndarray) -> None:
         """Put the hand at ``pose`` at rest with its fingers shut, as ``build`` does: a flying
         hand moved to the next pre-grasp of a world that persists between actions."""
-        free = self.model.joint("hand_free")
-        adr, dof = int(free.qposadr[0]), int(free.dofadr[0])
+        free = int(self.model.body_jntadr[self.hand_body])  # the hand body's free joint
+        adr, dof = int(self.model.jnt_qposadr[free]), int(self.model.jnt_dofadr[free])
         self.data.qpos[adr : adr + 3] = pose[:3, 3]
         self.data.qpos[adr + 3 : adr + 7] = quat_of(pose)
         self.data.qvel[dof : dof + 6] = 0.0
