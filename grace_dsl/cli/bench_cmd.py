@@ -96,12 +96,23 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--out", default="out/bench", help="where the report goes (out/bench)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument(
+        "--suite",
+        choices=("objects", "tasks"),
+        default="objects",
+        help="objects: open and close each category (default); tasks: the instruction suite, "
+        "parsed and carried out (grace_dsl.cli.run_cmd.run_suite)",
+    )
 
 
 def run_bench(args: Any, *, fn: Any = None, render: Any = None) -> int:
     """The body of ``grace bench``. ``fn`` replaces the episode function (default the simulated
     episode); ``render`` draws each failure's final frame (``grace_dsl.sim.report.FrameRenderer``,
     the scene renderer's job), none drawn without it."""
+    if getattr(args, "suite", "objects") == "tasks":
+        from grace_dsl.cli.run_cmd import run_suite
+
+        return run_suite(args)
     try:
         jobs = _jobs(args)
         result = bench(

@@ -14,8 +14,57 @@ from grace_dsl.cli.eacc import main as eacc_main
 from grace_dsl.cli.output import error, print_text
 from grace_dsl.runtime.errors import GraceError
 
+#: The subcommands other than ``demo``: (name, module, function adding its arguments, function
+#: running it, help). Each lives in its own module, imported only when ``grace`` starts.
+COMMANDS = (
+    (
+        "plan",
+        "plan_cmd",
+        "add_plan_arguments",
+        "run_plan",
+        "plan an action for the Panda and show it",
+    ),
+    (
+        "bench",
+        "bench_cmd",
+        "add_bench_arguments",
+        "run_bench",
+        "open and close articulated objects in simulation; a table",
+    ),
+    (
+        "parse",
+        "parse_cmd",
+        "add_parse_arguments",
+        "run_parse",
+        "an instruction in a scene -> its plan",
+    ),
+    (
+        "run",
+        "run_cmd",
+        "add_run_arguments",
+        "run_run",
+        "carry out an instruction in a simulated scene",
+    ),
+    (
+        "data",
+        "data_cmd",
+        "add_data_arguments",
+        "run_data",
+        "synthetic views for perception (data gen)",
+    ),
+    (
+        "estimate",
+        "estimate_cmd",
+        "add_estimate_arguments",
+        "run_estimate",
+        "fit a concept to a partial cloud",
+    ),
+)
+
 
 def main(argv: Sequence[str] | None = None) -> int:
+    import importlib
+
     parser = argparse.ArgumentParser(prog="grace", description="The GRACE pipeline.")
     sub = parser.add_subparsers(dest="command")
     demo_parser = sub.add_parser(
@@ -24,35 +73,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo_parser.add_argument(
         "-o", "--output", default="out/demo", help="where the picture and viewer page go"
     )
-    from grace_dsl.cli.bench_cmd import add_bench_arguments, run_bench
-    from grace_dsl.cli.data_cmd import add_data_arguments, run_data
-    from grace_dsl.cli.estimate_cmd import add_estimate_arguments, run_estimate
-    from grace_dsl.cli.plan_cmd import add_plan_arguments, run_plan
-
-    add_plan_arguments(sub.add_parser("plan", help="plan an action for the Panda and show it"))
-    add_bench_arguments(
-        sub.add_parser("bench", help="open and close articulated objects in simulation; a table")
-    )
-    from grace_dsl.cli.parse_cmd import add_parse_arguments, run_parse  # noqa: I001
+    runners = {}
+    for name, module_name, add, run, help_text in COMMANDS:
+        module = importlib.import_module(f"grace_dsl.cli.{module_name}")
+        getattr(module, add)(sub.add_parser(name, help=help_text))
+        runners[name] = getattr(module, run)
     from grace_dsl.cli.train_cmd import register as register_train
 
-    add_parse_arguments(sub.add_parser("parse", help="an instruction in a scene -> its plan"))
-    register_train(sub)  # grace train
-    add_data_arguments(sub.add_parser("data", help="synthetic views for perception (data gen)"))
-    add_estimate_arguments(sub.add_parser("estimate", help="fit a concept to a partial cloud"))
+    register_train(sub)  # grace train: its handler rides on the parsed arguments
     args = parser.parse_args(argv)
-    if hasattr(args, "handler"):  # subcommands that carry their own handler
+    if hasattr(args, "handler"):
         return int(args.handler(args))
-    if args.command == "parse":
-        return run_parse(args)
-    if args.command == "data":
-        return run_data(args)
-    if args.command == "estimate":
-        return run_estimate(args)
-    if args.command == "plan":
-        return run_plan(args)
-    if args.command == "bench":
-        return run_bench(args)
+    if args.command in runners:
+        return int(runners[args.command](args))
     if args.command != "demo":
         parser.print_help()
         return 2

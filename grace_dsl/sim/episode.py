@@ -56,6 +56,9 @@ PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing 
 RETREAT = 0.1  # m backed off along -z after letting go
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
 PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch
+STILL_TIME = 2.0  # s a part sent to an explicit goal may take to come to rest in the hand
+STILL_SPEED = 0.005  # m/s or rad/s: at rest
+GOAL_TOLERANCE = 0.01  # fraction of the range short of an explicit goal that counts as there
 
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
@@ -118,9 +121,21 @@ class Outcome:
 
 
 def execute(
-    inst: Instance, task: TaskAction, option: Option, gripper: Gripper, budget: float
+    inst: Instance,
+    task: TaskAction,
+    option: Option,
+    gripper: Gripper,
+    budget: float,
+    *,
+    goal: float | None = None,
+    world: World | None = None,
 ) -> Outcome:
-    """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds."""
+    """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds.
+
+    ``goal``: a joint value to stop at instead of the task's default (``FOLLOW_TO`` of the range
+    for an open, pressed past the stop for a close). ``world``: act in this world (several
+    objects, joint states kept between calls: ``grace_dsl.sim.multi``) with the hand placed at
+    the pre-grasp, instead of a new world of ``inst`` alone; ``budget`` counts from the call."""
     grasp = option.hand_pose if option.hand_pose is not None else option.pose
     assert grasp is not None
     pinch = option.mode == "pinch"
@@ -130,7 +145,11 @@ def execute(
         grasp = deeper(inst, gripper, grasp, open_to)
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
-    world = World.build(inst, gripper, start)
+    if world is None:
+        world = World.build(inst, gripper, start)
+    else:
+        world.place_hand(start)
+    began = world.time
     if pinch:
         world.set_fingers(open_to, at_once=True)
     travel = float(np.linalg.norm(grasp[:3, 3] - start[:3, 3]))
@@ -148,14 +167,33 @@ def execute(
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     lo, hi = inst.joint_limits()[task.joint]
-    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
+    aimed = goal is not None
+    if goal is None:
+        goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
-    slipped = _follow(world, task, follower, lo, hi, budget - world.time)
+    done_at = goal - task.sign * GOAL_TOLERANCE * (hi - lo) if aimed else None
+    slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
-    # a closed part is held pressed against its stop while the hand lets go
-    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    # a closed part is held pressed against its stop while the hand lets go; a part sent to an
+    # explicit goal is held there (held where the hand is, it springs back and coasts away)
+    reached = done_at is not None and (world.q(task.joint) - done_at) * task.sign >= 0
+    hold = follower.pose_at(goal) if (task.sign < 0 or reached) and not slipped else None
+    if reached and hold is not None:
+        _still(world, task.joint, hold)
     return _finish(world, task, arrived, slipped, "", hold=hold)
+
+
+def _still(world: World, joint: str, hold: np.ndarray) -> None:
+    """Hold at ``hold`` until ``joint`` stops (at most ``STILL_TIME``): the hand and the part
+    it grips swing on the hand's spring, and a part let go while moving coasts on."""
+    adr = world.joint_qpos[joint]
+    dof = int(world.model.jnt_dofadr[int(np.flatnonzero(world.model.jnt_qposadr == adr)[0])])
+    end = world.time + STILL_TIME
+    while world.time < end and not world.unstable():
+        _run(world, CONTROL_EVERY * world.model.opt.timestep * 5, lambda: hold)
+        if abs(float(world.data.qvel[dof])) < STILL_SPEED:
+            return
 
 
 def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) -> np.ndarray:
@@ -175,11 +213,19 @@ def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) ->
 
 
 def _follow(
-    world: World, task: TaskAction, follower: PathFollower, lo: float, hi: float, seconds: float
+    world: World,
+    task: TaskAction,
+    follower: PathFollower,
+    lo: float,
+    hi: float,
+    seconds: float,
+    done_at: float | None = None,
 ) -> bool:
-    """Drive along the path until the joint reaches its goal; True if the hand slipped off."""
+    """Drive along the path until the joint reaches ``done_at`` (default: near the task's
+    goal); True if the hand slipped off."""
     span = hi - lo
-    done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
+    if done_at is None:
+        done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
     end = world.time + max(seconds, 0.0)
     off_since: float | None = None
     q_ref = world.q(task.joint)

@@ -136,6 +136,22 @@ class World:
         )
 
     # -- driving
+    def place_hand(self, pose: np.ndarray) -> None:
+        """Put the hand at ``pose`` at rest with its fingers shut, as ``build`` does: a flying
+        hand moved to the next pre-grasp of a world that persists between actions."""
+        free = int(self.model.body_jntadr[self.hand_body])  # the hand body's free joint
+        adr, dof = int(self.model.jnt_qposadr[free]), int(self.model.jnt_dofadr[free])
+        self.data.qpos[adr : adr + 3] = pose[:3, 3]
+        self.data.qpos[adr + 3 : adr + 7] = quat_of(pose)
+        self.data.qvel[dof : dof + 6] = 0.0
+        for name in self.hand.fingers:
+            j = self.model.joint(name)
+            self.data.qpos[j.qposadr[0]] = 0.0
+            self.data.qvel[j.dofadr[0]] = 0.0
+        self._target = self._target_quat = None
+        self.set_fingers(0.0, at_once=True)
+        mujoco.mj_forward(self.model, self.data)
+
     def set_fingers(self, width: float, at_once: bool = False) -> None:
         """Command the pads ``width`` apart (each finger half of it; force capped). The command
         moves at the real finger speed (``FINGER_SPEED``) unless ``at_once``."""
