@@ -30,7 +30,7 @@ import numpy as np
 
 from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
-from grace_dsl.runtime.errors import GraceError, RequirementError
+from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.sim.arm import ArmWorld
 from grace_dsl.sim.arm_control import HandImpedance, JointTrajectory, track_torque
@@ -74,6 +74,11 @@ def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     """Run one arm episode of ``config`` with ``seed``; the same pair gives the same record."""
     from grace_dsl.robot.choose import NoGraspError
 
+    if config.hand != "panda":
+        raise ParameterError(
+            f"agent 'arm' is the Panda with its own hand; hand {config.hand!r} runs with "
+            "agent='gripper'"
+        )
     started = time.perf_counter()
     concept = _library()[config.concept]
     task = task_action(concept, config.task)
