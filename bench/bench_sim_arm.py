@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.small:
         categories, episodes = tuple(args.categories or SMALL), 2
     if args.smoke:
-        categories, tasks, episodes = (args.categories or ["Drawer"])[:1], ("open",), 1
+        categories, tasks, episodes = (args.categories or ["CabinetDrawer"])[:1], ("open",), 1
     records = run_all(categories, tasks, episodes, args.seed, args.log)
     summary = summarize(records)
     print_table(summary)

@@ -109,7 +109,9 @@ def panda_chain() -> PandaChain:
         com = _floats(_attr(inertial, "origin", "xyz"))
         i = inertial.find("inertia")
         assert i is not None
-        inertia = np.array([float(i.get(k, "0")) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")])
+        inertia = np.array(
+            [float(i.get(k, "0")) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+        )
         mesh_el = el.find("collision/geometry/mesh")
         mesh = meshes / Path(mesh_el.get("filename", "")).name if mesh_el is not None else None
         links.append(ArmLink(name, mass, com, inertia, mesh))
@@ -143,9 +145,9 @@ def flange_to_tcp() -> np.ndarray:
     return pose
 
 
-def arm_body(base: np.ndarray, gripper: Gripper, grasp_force: float = GRASP_FORCE) -> tuple[
-    HandSpec, list[ET.Element], ET.Element, list[ET.Element]
-]:
+def arm_body(
+    base: np.ndarray, gripper: Gripper, grasp_force: float = GRASP_FORCE
+) -> tuple[HandSpec, list[ET.Element], ET.Element, list[ET.Element]]:
     """The arm's MJCF: (hand spec, mesh assets, the base body at ``base``, actuators: the seven
     joint motors, then the fingers' servos)."""
     chain = panda_chain()
@@ -267,7 +269,9 @@ class ArmWorld:
         dadr = np.array([model.joint(n).dofadr[0] for n in ARM_JOINTS])
         data.qpos[qadr] = np.asarray(q, float)
         arm_bodies = {model.body(n).id for n in ARM_LINKS}
-        hand_bodies = {i for i in range(model.nbody) if model.body(i).name.startswith(("hand", "finger_"))}
+        hand_bodies = {
+            i for i in range(model.nbody) if model.body(i).name.startswith(("hand", "finger_"))
+        }
         ours = arm_bodies | hand_bodies
         w = ArmWorld(
             model,
@@ -386,7 +390,9 @@ def _object_root(inst: Instance) -> ET.Element:
 def _origin(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
     """URDF's origin: translation ``xyz``, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
     r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y))
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
     rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
     ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])

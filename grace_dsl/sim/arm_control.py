@@ -70,7 +70,9 @@ class JointTrajectory:
         return q, v, a
 
 
-def track_torque(world: ArmWorld, q_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray) -> np.ndarray:
+def track_torque(
+    world: ArmWorld, q_ref: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray
+) -> np.ndarray:
     """Joint impedance toward ``(q_ref, v_ref)`` plus the inertial feed-forward ``M a_ref``."""
     e = q_ref - world.arm_q()
     de = v_ref - world.arm_dq()

@@ -55,8 +55,14 @@ from grace_dsl.sim.episode import (
     _jsonable,
     _library,
 )
-from grace_dsl.sim.protocol import CLOSE_GOAL, TaskAction, draw_episode, task_action
-from grace_dsl.sim.protocol import lenient_success, strict_success
+from grace_dsl.sim.protocol import (
+    CLOSE_GOAL,
+    TaskAction,
+    draw_episode,
+    lenient_success,
+    strict_success,
+    task_action,
+)
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 
 PLACEMENTS = 6  # base placements plan_placed may try (the given one, the centred one, shifts)
