@@ -43,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode of 1 task")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
     ap.add_argument("--log", type=Path, default=None, help="append each record here (JSON lines)")
+    ap.add_argument(
+        "--summarize", type=Path, default=None, help="no episodes: the table of a --log file"
+    )
     args = ap.parse_args(argv)
     categories = tuple(args.categories or CATEGORIES)
     tasks, episodes = tuple(args.tasks), args.episodes
@@ -50,7 +53,10 @@ def main(argv: list[str] | None = None) -> int:
         categories, episodes = tuple(args.categories or SMALL), 2
     if args.smoke:
         categories, tasks, episodes = (args.categories or ["CabinetDrawer"])[:1], ("open",), 1
-    records = run_all(categories, tasks, episodes, args.seed, args.log)
+    if args.summarize is not None:
+        records = read_log(args.summarize)
+    else:
+        records = run_all(categories, tasks, episodes, args.seed, args.log)
     summary = summarize(records)
     print_table(summary)
     out = args.out or RESULTS
@@ -93,6 +99,18 @@ def run_all(
                 with log.open("a") as f:
                     f.write(json.dumps(record.to_json()) + "\n")
             bar.advance(task)
+    return records
+
+
+def read_log(path: Path) -> list[EpisodeRecord]:
+    """The records of a ``--log`` file (an interrupted run's, too)."""
+    records = []
+    for line in path.read_text().splitlines():
+        data = json.loads(line)
+        config = data.pop("config")
+        config["scale"] = tuple(config["scale"])
+        data["q_range"] = tuple(data["q_range"])
+        records.append(EpisodeRecord(config=EpisodeConfig(**config), **data))
     return records
 
 
