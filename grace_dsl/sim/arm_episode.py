@@ -55,6 +55,7 @@ from grace_dsl.sim.episode import (
     _failure,
     _jsonable,
     _library,
+    deeper,
 )
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
@@ -72,6 +73,7 @@ ENOUGH = 0.55  # fraction of the range a partial open plan must reach to be wort
 # An open is planned to this fraction of the range (strict success needs half): the further a
 # door swings, the more often the arm's workspace ends first, and the gripper's 0.9 buys nothing
 OPEN_TO = 0.7
+PINCH_IN_TIME = 0.3  # s to move from the planned grasp to the flying hand's pinch depth
 DONE_SHORT = 0.03  # fraction of the range short of an open's goal at which it is done
 
 
@@ -222,11 +224,11 @@ def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: flo
         np.linalg.norm(now[:3, 3] - grasp[:3, 3]) < ARRIVED
         and rotation_angle(now, grasp) < ARRIVED_ROT
     )
-    hold_q = track.q[-1]
-    still = (hold_q, np.zeros(7), np.zeros(7))
-    if phases.pinch:
+    hand = HandImpedance()
+    if phases.pinch:  # in until the pads' middle, not their tips, closes on the part
+        grasp = _pinch_in(world, inst, plan, grasp, hand)
         world.set_fingers(0.0)
-        _run(world, CLOSE_TIME, lambda t: track_torque(world, *still))
+        _run(world, CLOSE_TIME, lambda t: hand.torque(world, grasp, track.q[-1]))
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     lo, hi = inst.joint_limits()[task.joint]
@@ -234,7 +236,6 @@ def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: flo
     if task.sign > 0 and plan.to is not None:
         goal = min(goal, float(plan.to))
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
-    hand = HandImpedance()
     # the budget is the interaction's, as the flying hand's (its approach takes half a second;
     # the arm's planned approach several)
     slipped = _follow(world, task, follower, phases, hand, lo, hi, budget)
@@ -242,6 +243,26 @@ def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: flo
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
     return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold)
+
+
+def _pinch_in(
+    world: ArmWorld, inst: Instance, plan: ActionPlan, grasp: np.ndarray, hand: HandImpedance
+) -> np.ndarray:
+    """The planner stops a pinch short of its grasp by the pads' standoff (their ends must not
+    press into the part), but pads closing with their ends squeeze a round bar out, as the
+    flying hand found: the hand goes on, compliantly, as deep as the flying hand's pinch
+    (``deeper``: the open hand stays out of the part); returns the pose it closes at."""
+    back = grasp.copy()
+    back[:3, 3] += grasp[:3, 2] * plan.standoff
+    gripper = panda().gripper
+    deep = deeper(inst, gripper, back, gripper.max_width)
+    start, posture, t0 = world.hand_pose(), world.arm_q(), world.time
+
+    def move(t: float) -> np.ndarray:
+        return hand.torque(world, blend(start, deep, (t - t0) / PINCH_IN_TIME), posture)
+
+    _run(world, PINCH_IN_TIME + SETTLE / 2, move, absolute=True)
+    return deep
 
 
 def _posture(phases: _Phases, value: float) -> np.ndarray:
