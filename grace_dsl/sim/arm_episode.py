@@ -217,10 +217,16 @@ def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: flo
     phases = _cut(plan)
     world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
     track = phases.move_in
-    _run(world, float(track.t[-1]) + SETTLE, lambda t: track_torque(world, *track.at(t)))
+    touched = [False]  # an arm link (not the hand) met the object on the way in
+
+    def move_in(t: float) -> np.ndarray:
+        touched[0] = touched[0] or world.arm_contact()
+        return track_torque(world, *track.at(t))
+
+    _run(world, float(track.t[-1]) + SETTLE, move_in)
     grasp = plan.base @ robot.fk(track.q[-1])
     now = world.hand_pose()
-    arrived = bool(
+    arrived = not touched[0] and bool(
         np.linalg.norm(now[:3, 3] - grasp[:3, 3]) < ARRIVED
         and rotation_angle(now, grasp) < ARRIVED_ROT
     )

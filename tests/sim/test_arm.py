@@ -53,6 +53,18 @@ def test_the_arm_holds_still_under_gravity_compensation(lib, panda: Robot) -> No
     assert np.abs(sagging.arm_q() - q0).max() > 0.05
 
 
+def test_an_arm_link_in_the_object_is_a_contact(lib, panda: Robot) -> None:  # type: ignore[no-untyped-def]
+    world = _world(lib, panda)
+    assert not world.arm_contact()  # 1 m in front of the drawer, at home
+    inst = lib["CabinetDrawer"].instantiate(pose=Z_UP)
+    base = np.eye(4)
+    base[:3, :3] = np.diag([-1.0, -1.0, 1.0])
+    base[:3, 3] = (0.0, 0.0, 0.0)  # standing in the carcass, the upper arm through its top
+    inside = ArmWorld.build(inst, base, panda.home)
+    inside.step(np.zeros(7))
+    assert inside.arm_contact()
+
+
 def test_the_arm_takes_only_the_panda_hand() -> None:
     with pytest.raises(ParameterError, match="hand"):
         run_episode(EpisodeConfig("CabinetDrawer", agent="arm", hand="pusher"), 0)
