@@ -64,6 +64,10 @@ GOAL_TOLERANCE = 0.01  # fraction of the range short of an explicit goal that co
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     """Run one episode of ``config`` with ``seed``; the same pair gives the same record."""
     _check_config(config)
+    if config.agent == "arm":  # the full Panda: planned by the robot layer (sim.arm_episode)
+        from grace_dsl.sim.arm_episode import run_arm_episode
+
+        return run_arm_episode(config, seed)
     started = time.perf_counter()
     concept = _library()[config.concept]
     task = task_action(concept, config.task)
@@ -354,10 +358,10 @@ def _jsonable(params: dict[str, object]) -> dict[str, object]:
 
 
 def _check_config(config: EpisodeConfig) -> None:
-    if config.agent != "gripper":
+    if config.agent not in ("gripper", "arm"):
         raise ParameterError(
-            f"agent {config.agent!r} is not built yet: run_episode drives a flying hand "
-            "(agent='gripper')"
+            f"agent {config.agent!r} is unknown: run_episode drives a flying hand "
+            "(agent='gripper') or the full Panda (agent='arm')"
         )
     if config.mode != "oracle" or config.engine != "mujoco":
         raise ParameterError(

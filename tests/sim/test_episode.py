@@ -45,7 +45,7 @@ def test_a_hand_that_cannot_pinch_reports_a_reason_not_an_exception() -> None:
 
 def test_unsupported_configurations_raise_typed_errors() -> None:
     with pytest.raises(ParameterError, match="agent"):
-        run_episode(EpisodeConfig("CabinetDrawer", agent="arm"), 0)
+        run_episode(EpisodeConfig("CabinetDrawer", agent="legs"), 0)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="oracle"):
         run_episode(EpisodeConfig("CabinetDrawer", mode="estimated"), 0)
 

@@ -1,0 +1,386 @@
+"""One physical episode with the full Panda: a pure function of (config, seed).
+
+The protocol draws the object, its joint value and the camera as for the flying hand
+(``grace_dsl.sim.episode``). The robot layer then does what it does on a real arm: the base
+stands where ``default_instance`` would put the object in front of it (0.6 m ahead, the grasps
+0.5 m above the base; the base is a pedestal, there is no floor to hit), ``plan_placed`` plans
+the whole action from there (grasp postures by IK, collision-checked insert, interaction and
+retreat, an OMPL approach; other base placements when that one cannot), and MuJoCo executes it:
+
+1. the approach and the move in, tracked in joint space (``JointTracker``);
+2. a pinch closes the fingers (70 N, the flying hand's fingers);
+3. the interaction with compliance: the hand a Cartesian spring through the arm's Jacobian,
+   its target the path follower's, re-anchored on the measured joint value as for the flying
+   hand; the arm's self-motion held near the plan's posture at that joint value;
+4. release and a straight retreat along the approach axis.
+
+Failure reasons: no grasp the arm can take (``no_feasible_grasp``), no plan from any
+placement (``ik_failure``), the arm stopped on its way in (``collision``), then as for the
+flying hand (slip, wrong direction, timeout).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from grace_dsl.robot.act import ActionPlan
+from grace_dsl.robot.model import Robot
+from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
+from grace_dsl.runtime.instance import Instance
+from grace_dsl.sim.arm import ArmWorld
+from grace_dsl.sim.arm_control import HandImpedance, JointTrajectory, track_torque
+from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.episode import (
+    ARRIVED,
+    ARRIVED_ROT,
+    CLOSE_TIME,
+    CONTROL_EVERY,
+    EMPTY,
+    FOLLOW_TO,
+    PRESS_PAST,
+    RETREAT,
+    SETTLE,
+    SLIP,
+    SLIP_TIME,
+    Z_UP,
+    Outcome,
+    _camera,
+    _early,
+    _failure,
+    _jsonable,
+    _library,
+    deeper,
+)
+from grace_dsl.sim.protocol import (
+    CLOSE_GOAL,
+    TaskAction,
+    draw_episode,
+    lenient_success,
+    strict_success,
+    task_action,
+)
+from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
+
+PLACEMENTS = 6  # base placements plan_placed may try (the given one, the centred one, shifts)
+REPLAN_AT = 0.95  # an open that plans only part of the way is replanned to this much of it
+ENOUGH = 0.55  # fraction of the range a partial open plan must reach to be worth executing
+# An open is planned to this fraction of the range (strict success needs half): the further a
+# door swings, the more often the arm's workspace ends first, and the gripper's 0.9 buys nothing
+OPEN_TO = 0.7
+PINCH_IN_TIME = 0.3  # s to move from the planned grasp to the flying hand's pinch depth
+DONE_SHORT = 0.03  # fraction of the range short of an open's goal at which it is done
+
+
+@lru_cache(maxsize=1)
+def panda() -> Robot:
+    """The robot layer's Panda, loaded once per process."""
+    return Robot.panda()
+
+
+def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
+    """Run one arm episode of ``config`` with ``seed``; the same pair gives the same record."""
+    from grace_dsl.robot.choose import NoGraspError
+
+    if config.hand != "panda":
+        raise ParameterError(
+            f"agent 'arm' is the Panda with its own hand; hand {config.hand!r} runs with "
+            "agent='gripper'"
+        )
+    started = time.perf_counter()
+    concept = _library()[config.concept]
+    task = task_action(concept, config.task)
+    try:
+        draw = draw_episode(config, concept, seed)
+    except RequirementError as exc:
+        return _early(config, seed, task, "invalid_draw", str(exc), started)
+    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
+    inst = concept.instantiate(
+        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
+    )
+    try:
+        plan = plan_episode(inst, task, seed)
+    except NoGraspError as exc:
+        return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+    except GraceError as exc:
+        return _early(config, seed, task, "ik_failure", str(exc), started, draw, inst)
+    outcome = execute_plan(inst, task, plan, config.max_seconds)
+    lo, hi = inst.joint_limits()[task.joint]
+    strict = strict_success(config.task, outcome.q_final, lo, hi)
+    lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
+    reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
+    option = plan.choice.option
+    return EpisodeRecord(
+        config=config,
+        seed=seed,
+        joint=task.joint,
+        q_range=(lo, hi),
+        q_initial=draw.q_initial,
+        q_final=outcome.q_final,
+        lenient=lenient,
+        strict=strict,
+        reason=reason,
+        detail=detail,
+        params=_jsonable(draw.params),
+        camera=_camera(draw, inst),
+        option=f"{option.grasp} ({option.mode})",
+        sim_seconds=outcome.sim_seconds,
+        wall_seconds=time.perf_counter() - started,
+    )
+
+
+def robot_base(robot: Robot, inst: Instance, action: str) -> np.ndarray:
+    """The base's world pose as ``default_instance`` places robot and object, for the object as
+    it stands now (a door that starts wide open has its handle far out to the side): the
+    action's grasps ``REACH`` ahead of the base and ``HEIGHT`` above it, the base facing the
+    object's front (world -x), stepped back while the home posture would touch the object."""
+    from grace_dsl.robot.collision import collision_scene
+    from grace_dsl.robot.placement import (
+        HEIGHT,
+        MAX_STEPS_BACK,
+        REACH,
+        STEP_BACK,
+        _grasp_centre,
+        base_pose,
+    )
+
+    centre = _grasp_centre(inst, action)
+    base = base_pose(float(centre[0]) + REACH, float(centre[1]), math.pi)
+    base[2, 3] = float(centre[2]) - HEIGHT
+    for _ in range(MAX_STEPS_BACK):
+        if not collision_scene(robot, inst, base=base).collides(robot.home):
+            break
+        base[0, 3] += STEP_BACK
+    return base
+
+
+def plan_episode(inst: Instance, task: TaskAction, seed: int) -> ActionPlan:
+    """The robot layer's plan for the task: open to ``OPEN_TO`` of the range (or, where the
+    arm cannot get that far, ``REPLAN_AT`` of how far it can, when that passes ``ENOUGH``);
+    close to the closed end."""
+    from grace_dsl.robot.act import ActionPlanningError
+    from grace_dsl.robot.placement import plan_placed
+
+    robot = panda()
+    base = robot_base(robot, inst, task.action)
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    span = hi - lo
+    to = min(max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi)
+    to = to if task.sign > 0 else lo
+    try:
+        return plan_placed(
+            robot, inst, task.action, to, base=base, seed=seed, count=PLACEMENTS
+        ).plan
+    except ActionPlanningError as exc:
+        if task.sign < 0 or exc.value is None:
+            raise
+        partial = start + REPLAN_AT * (float(exc.value) - start)
+        if partial < lo + ENOUGH * span:
+            raise
+        return plan_placed(
+            robot, inst, task.action, partial, base=base, seed=seed, count=PLACEMENTS
+        ).plan
+
+
+@dataclass(frozen=True)
+class _Phases:
+    """The plan cut where the execution changes its controller."""
+
+    move_in: JointTrajectory  # from the start to the grasp (the approach and the insert)
+    interact_q: np.ndarray  # (K, 7) the planned interaction
+    interact_values: np.ndarray  # (K,) the object's joint along it
+    pinch: bool
+
+
+def _cut(plan: ActionPlan) -> _Phases:
+    spans = {name: (a, b) for name, a, b in plan.phases}
+    _, stop = spans["insert"]
+    a, b = spans["interact"]
+    pinch = any(width == 0.0 for _, width in plan.gripper)
+    return _Phases(
+        JointTrajectory(np.asarray(plan.q[:stop]), np.asarray(plan.t[:stop])),
+        np.asarray(plan.q[a:b]),
+        np.asarray(plan.joint_values[a:b]),
+        pinch,
+    )
+
+
+def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: float) -> Outcome:
+    """Run ``plan`` on the simulated arm; ``budget`` simulated seconds."""
+    robot = panda()
+    phases = _cut(plan)
+    world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
+    track = phases.move_in
+    touched = [False]  # an arm link (not the hand) met the object on the way in
+
+    def move_in(t: float) -> np.ndarray:
+        touched[0] = touched[0] or world.arm_contact()
+        return track_torque(world, *track.at(t))
+
+    _run(world, float(track.t[-1]) + SETTLE, move_in)
+    grasp = plan.base @ robot.fk(track.q[-1])
+    now = world.hand_pose()
+    arrived = not touched[0] and bool(
+        np.linalg.norm(now[:3, 3] - grasp[:3, 3]) < ARRIVED
+        and rotation_angle(now, grasp) < ARRIVED_ROT
+    )
+    hand = HandImpedance()
+    if phases.pinch:  # in until the pads' middle, not their tips, closes on the part
+        grasp = _pinch_in(world, inst, plan, grasp, hand)
+        world.set_fingers(0.0)
+        _run(world, CLOSE_TIME, lambda t: hand.torque(world, grasp, track.q[-1]))
+        if world.opening() < EMPTY:
+            return _finish(world, task, arrived, True, "the fingers closed on nothing")
+    lo, hi = inst.joint_limits()[task.joint]
+    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
+    if task.sign > 0 and plan.to is not None:
+        goal = min(goal, float(plan.to))
+    follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
+    # the budget is the interaction's, as the flying hand's (its approach takes half a second;
+    # the arm's planned approach several)
+    slipped = _follow(world, task, follower, phases, hand, lo, hi, budget)
+    if world.unstable():
+        return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
+    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold)
+
+
+def _pinch_in(
+    world: ArmWorld, inst: Instance, plan: ActionPlan, grasp: np.ndarray, hand: HandImpedance
+) -> np.ndarray:
+    """The planner stops a pinch short of its grasp by the pads' standoff (their ends must not
+    press into the part), but pads closing with their ends squeeze a round bar out, as the
+    flying hand found: the hand goes on, compliantly, as deep as the flying hand's pinch
+    (``deeper``: the open hand stays out of the part); returns the pose it closes at."""
+    back = grasp.copy()
+    back[:3, 3] += grasp[:3, 2] * plan.standoff
+    gripper = panda().gripper
+    deep = deeper(inst, gripper, back, gripper.max_width)
+    start, posture, t0 = world.hand_pose(), world.arm_q(), world.time
+
+    def move(t: float) -> np.ndarray:
+        return hand.torque(world, blend(start, deep, (t - t0) / PINCH_IN_TIME), posture)
+
+    _run(world, PINCH_IN_TIME + SETTLE / 2, move, absolute=True)
+    return deep
+
+
+def _posture(phases: _Phases, value: float) -> np.ndarray:
+    """The plan's arm posture at the object's joint value ``value`` (clamped to the plan)."""
+    values = phases.interact_values
+    order = np.argsort(values)
+    xs = values[order]
+    return np.array([np.interp(value, xs, phases.interact_q[order, i]) for i in range(7)])
+
+
+def _follow(
+    world: ArmWorld,
+    task: TaskAction,
+    follower: PathFollower,
+    phases: _Phases,
+    hand: HandImpedance,
+    lo: float,
+    hi: float,
+    seconds: float,
+) -> bool:
+    """Drive the hand along the path until the joint reaches its goal; True if it slipped."""
+    span = hi - lo
+    done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
+    if task.sign > 0:  # the goal is where the target stops: done a little short of it
+        done_at = min(done_at, follower.goal - DONE_SHORT * span)
+    end = world.time + max(seconds, 0.0)
+    off_since: float | None = None
+    q_ref = world.q(task.joint)
+    target = follower.pose_at(q_ref)
+    posture = _posture(phases, q_ref)
+    tick = CONTROL_EVERY * world.model.opt.timestep
+    steps = 0
+    while world.time < end:
+        q = world.q(task.joint)
+        if (q - done_at) * task.sign >= 0:
+            return False
+        if steps % CONTROL_EVERY == 0:
+            q_ref = follower.advance(q, q_ref, tick)
+            target = follower.pose_at(q_ref)
+            posture = _posture(phases, q)
+            drift = float(np.linalg.norm(world.hand_pose()[:3, 3] - follower.pose_at(q)[:3, 3]))
+            if drift > SLIP:
+                off_since = world.time if off_since is None else off_since
+                if world.time - off_since > SLIP_TIME:
+                    return True
+            else:
+                off_since = None
+            if world.unstable():
+                return False
+        world.step(hand.torque(world, target, posture))
+        steps += 1
+    return False
+
+
+def _finish(
+    world: ArmWorld,
+    task: TaskAction,
+    arrived: bool,
+    slipped: bool,
+    detail: str,
+    unstable: bool = False,
+    hand: HandImpedance | None = None,
+    hold: np.ndarray | None = None,
+) -> Outcome:
+    """Let go (at ``hold``, else where the hand is), back off along the approach axis and
+    settle; the joint value after that is the episode's result."""
+    if not unstable:
+        hand = hand or HandImpedance()
+        posture = world.arm_q()
+        hold = world.hand_pose() if hold is None else hold
+        _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
+        world.set_fingers(world.hand.finger_travel * 2)
+        _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
+        back = hold.copy()
+        back[:3, 3] -= hold[:3, 2] * RETREAT
+        t0 = world.time
+
+        def retreat(t: float) -> np.ndarray:
+            return hand.torque(world, blend(hold, back, (t - t0) / SETTLE), world.arm_q())
+
+        _run(world, 2 * SETTLE, retreat, absolute=True)
+    q = world.q(task.joint)
+    return Outcome(
+        q if np.isfinite(q) else float("nan"),
+        world.time,
+        arrived,
+        slipped,
+        unstable or world.unstable(),
+        detail,
+    )
+
+
+def _run(
+    world: ArmWorld,
+    seconds: float,
+    torque: Callable[[float], np.ndarray],
+    absolute: bool = False,
+) -> None:
+    """Step ``seconds`` with ``torque(t)`` (``t`` from this call's start, or the world's time
+    when ``absolute``), recomputed every step."""
+    t0 = 0.0 if absolute else world.time
+    end = world.time + seconds
+    steps = 0
+    while world.time < end:
+        if steps % CONTROL_EVERY == 0 and world.unstable():
+            return
+        world.step(torque(world.time - t0))
+        steps += 1
+
+
+def demo_arm_episode(
+    concept: str = "CabinetDrawer", task: str = "open", seed: int = 0
+) -> EpisodeRecord:
+    """One arm episode for the demo: a drawer opened by the full Panda by default."""
+    return run_arm_episode(EpisodeConfig(concept, task, agent="arm"), seed)  # type: ignore[arg-type]
