@@ -25,6 +25,7 @@ from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.manipulation import CLEARANCE, Option
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.hand_motion import follower_for
 from grace_dsl.sim.model import zup_pose
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
@@ -149,7 +150,7 @@ def execute(
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     lo, hi = inst.joint_limits()[task.joint]
     goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
-    follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
+    follower = follower_for(gripper, inst, task.joint, grasp, goal, task.sign)
     slipped = _follow(world, task, follower, lo, hi, budget - world.time)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
