@@ -125,8 +125,10 @@ def report(records: list[EpisodeRecord], panda: list[EpisodeRecord]) -> dict[str
     """Print and return the tables: per set-up, category and task; what a hand cannot do; and
     rank-feasible options tried against succeeded, per hand."""
     rows = summarize(records)
-    print(f"{'setup':8} {'category':14} {'task':6} {'n':>3} {'tried':>5} {'strict':>6} "
-          f"{'lenient':>7}  failures / why not")
+    print(
+        f"{'setup':8} {'category':14} {'task':6} {'n':>3} {'tried':>5} {'strict':>6} "
+        f"{'lenient':>7}  failures / why not"
+    )
     for r in rows:
         why = r["cannot"] or ", ".join(f"{k} {v}" for k, v in sorted(r["reasons"].items()))
         print(
@@ -143,8 +145,7 @@ def report(records: list[EpisodeRecord], panda: list[EpisodeRecord]) -> dict[str
     print(f"{'hand':16} {'episodes':>8} {'rank-feasible':>13} {'strict':>6} {'lenient':>7}")
     for f in feasible:
         print(
-            f"{f['hand']:16} {f['episodes']:8d} {f['tried']:13d} {f['strict']:6d} "
-            f"{f['lenient']:7d}"
+            f"{f['hand']:16} {f['episodes']:8d} {f['tried']:13d} {f['strict']:6d} {f['lenient']:7d}"
         )
     return {"summary": rows, "below_target": below, "rank_feasible": feasible}
 

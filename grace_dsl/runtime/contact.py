@@ -437,7 +437,9 @@ class Scene:
             self._leaves = [self._leaf(i, *f) for i, f in enumerate(found)]
         return self._leaves
 
-    def _collect(self, name: str, place: np.ndarray, out: list[tuple[str, str, np.ndarray]]) -> None:
+    def _collect(
+        self, name: str, place: np.ndarray, out: list[tuple[str, str, np.ndarray]]
+    ) -> None:
         s = self.tree.shapes[name]
         if s["primitive"] in ("union", "difference"):
             ops = s["operands"] if s["primitive"] == "union" else s["operands"][:1]
@@ -496,9 +498,10 @@ class Scene:
             return 0.0, ""
         points, normals = np.concatenate(pts), np.concatenate(nrm)
         world = pose @ boxes.poses  # (K, 4, 4)
-        local = np.einsum("nj,kji->kni", points, world[:, :3, :3]) - np.einsum(
-            "kj,kji->ki", world[:, :3, 3], world[:, :3, :3]
-        )[:, None, :]  # (K, n, 3): each point in each box's frame
+        local = (
+            np.einsum("nj,kji->kni", points, world[:, :3, :3])
+            - np.einsum("kj,kji->ki", world[:, :3, 3], world[:, :3, :3])[:, None, :]
+        )  # (K, n, 3): each point in each box's frame
         room = (boxes.halves[:, None, :] - np.abs(local)).min(axis=2)  # (K, n)
         k_idx, n_idx = np.nonzero(room > CLEAR)
         if not len(k_idx):
