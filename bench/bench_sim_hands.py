@@ -89,21 +89,33 @@ def main(argv: list[str] | None = None) -> int:
             categories, episodes = tuple(args.categories or SMALL), 3
         if args.smoke:
             categories, episodes = (categories[0],), 1
-        jobs = [
-            job
-            for name in args.setups
-            for job in plan_episodes(categories, episodes, args.seed, SETUPS[name])
-        ]
-        records = run_episodes(jobs, workers=args.workers)
+        records = []
+        for name in args.setups:  # a category at a time, the JSON rewritten after each
+            for category in categories:
+                jobs = plan_episodes((category,), episodes, args.seed, SETUPS[name])
+                records += run_episodes(jobs, workers=args.workers)
+                write(args, command, episodes, records, quiet=True)
+    write(args, command, episodes, records)
+    return 0
+
+
+def write(
+    args: argparse.Namespace,
+    command: str,
+    episodes: int,
+    records: list[EpisodeRecord],
+    quiet: bool = False,
+) -> None:
+    """The tables (printed unless ``quiet``) and every record, to ``--out``."""
     panda = panda_records(args.panda)
-    result = report(records, panda)
+    result = report(records, panda, quiet)
     out = args.out or RESULTS
     out.parent.mkdir(parents=True, exist_ok=True)
     payload = {"command": command, "episodes": episodes, "seed": args.seed, **result}
     payload["records"] = [r.to_json() for r in records]
     out.write_text(json.dumps(payload, indent=1) + "\n")
-    print(f"wrote {out}")
-    return 0
+    if not quiet:
+        print(f"wrote {out}")
 
 
 def setup_of(config: EpisodeConfig) -> str:
@@ -121,10 +133,26 @@ def panda_records(path: Path) -> list[EpisodeRecord]:
     return [record_from_json(r) for r in json.loads(path.read_text()).get("records", [])]
 
 
-def report(records: list[EpisodeRecord], panda: list[EpisodeRecord]) -> dict[str, Any]:
-    """Print and return the tables: per set-up, category and task; what a hand cannot do; and
-    rank-feasible options tried against succeeded, per hand."""
+def report(
+    records: list[EpisodeRecord], panda: list[EpisodeRecord], quiet: bool = False
+) -> dict[str, Any]:
+    """Print (unless ``quiet``) and return the tables: per set-up, category and task; what a
+    hand cannot do; and rank-feasible options tried against succeeded, per hand."""
     rows = summarize(records)
+    below = [
+        f"{r['setup']} {r['concept']} {r['task']} {r['strict']:.2f}"
+        for r in rows
+        if not r["cannot"] and r["strict"] < TARGET
+    ]
+    feasible = feasible_table(records, panda)
+    if not quiet:
+        print_tables(rows, below, feasible)
+    return {"summary": rows, "below_target": below, "rank_feasible": feasible}
+
+
+def print_tables(
+    rows: list[dict[str, Any]], below: list[str], feasible: list[dict[str, Any]]
+) -> None:
     print(
         f"{'setup':8} {'category':14} {'task':6} {'n':>3} {'tried':>5} {'strict':>6} "
         f"{'lenient':>7}  failures / why not"
@@ -135,19 +163,12 @@ def report(records: list[EpisodeRecord], panda: list[EpisodeRecord]) -> dict[str
             f"{r['setup']:8} {r['concept']:14} {r['task']:6} {r['episodes']:3d} "
             f"{r['tried']:5d} {r['strict']:6.2f} {r['lenient']:7.2f}  {why[:110]}"
         )
-    below = [
-        f"{r['setup']} {r['concept']} {r['task']} {r['strict']:.2f}"
-        for r in rows
-        if not r["cannot"] and r["strict"] < TARGET
-    ]
     print(f"below {TARGET} strict where the hand can do the task: {below or 'none'}")
-    feasible = feasible_table(records, panda)
     print(f"{'hand':16} {'episodes':>8} {'rank-feasible':>13} {'strict':>6} {'lenient':>7}")
     for f in feasible:
         print(
             f"{f['hand']:16} {f['episodes']:8d} {f['tried']:13d} {f['strict']:6d} {f['lenient']:7d}"
         )
-    return {"summary": rows, "below_target": below, "rank_feasible": feasible}
 
 
 def summarize(records: list[EpisodeRecord]) -> list[dict[str, Any]]:
