@@ -80,7 +80,7 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
     usable = [o for o in options if o.feasible]
     if not usable:
-        why = options[0].reasons[0] if options and options[0].reasons else "no option"
+        why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons) or "no option"
         return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst)
     outcome = execute(inst, task, usable[0], gripper, config.max_seconds)
     lo, hi = inst.joint_limits()[task.joint]
