@@ -22,10 +22,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grace_dsl.geometry.props import bounds, volume
 from grace_dsl.geometry.sample import sample_surface, surface_area
 from grace_dsl.geometry.sdf import FORMULAS, NumpyOps
 from grace_dsl.runtime.gripper import FingerBox, Gripper, box_surface_grid
@@ -39,11 +40,13 @@ if TYPE_CHECKING:
 PAD_SPACING = 0.005  # m between sample points on pads and finger blocks
 PALM_SPACING = 0.010  # m between sample points on the palm
 CLEAR = 0.002  # m of penetration that counts as touching (the rubber pads give that much)
-# The reverse check's samples on the part's surface: about one per SURFACE_SPACING square, at
-# least SURFACE_MIN and at most SURFACE_MAX per primitive (thin plates and knobs are small
-# primitives, so they get the densest samples; a large panel is thick enough for the face grid).
+# The reverse check samples the surface of thin primitives only: a part thicker than the face
+# grids' spacing cannot pass between two face samples, so the forward check sees it. A
+# primitive's thickness is taken as 2 volume / area (a plate's thickness, a rod's radius, a
+# tube's wall). About one sample per SURFACE_SPACING square, SURFACE_MIN to SURFACE_MAX each.
+THIN = 0.012  # m
 SURFACE_SPACING = 0.005  # m
-SURFACE_MIN, SURFACE_MAX = 200, 4000
+SURFACE_MIN, SURFACE_MAX = 100, 1500
 SURFACE_ON = 1e-4  # m: a sample this close to the scene's zero level is on its outer surface
 PROBES = 4  # points along the inward normal at which a sample inside a box measures the depth
 
@@ -349,7 +352,8 @@ class Scene:
         self.placements = {n: self.tree.placement(n) for n in self.names}
         self._own: dict[str, np.ndarray] = {}  # world -> rest, per link, at the instance's q
         self._inv: dict[str, np.ndarray] = {}  # each shape's placement inverted
-        self._leaves: list[Leaf] | None = None  # the primitives' surface samples, lazily
+        self._leaves: list[Leaf] | None = None  # the thin primitives, sampled lazily
+        self._moved_at: dict[bytes, set[str]] = {}
 
     def sdf(
         self, points: list[np.ndarray], qs: np.ndarray | None = None, skip: str | None = None
@@ -428,13 +432,14 @@ class Scene:
 
     # -- the reverse check: the part's surface inside the hand's boxes
     def leaves(self) -> list[Leaf]:
-        """Every primitive whose surface can be outer (a difference's first operand, a union's
-        operands), with raw surface samples at the instance's joints; cached."""
+        """Every thin primitive whose surface can be outer (a difference's first operand, a
+        union's operands), with its bounding sphere at the instance's joints; cached."""
         if self._leaves is None:
             found: list[tuple[str, str, np.ndarray]] = []
             for name in self.names:
                 self._collect(name, self.placements[name], found)
-            self._leaves = [self._leaf(i, *f) for i, f in enumerate(found)]
+            leaves = (self._leaf(i, *f) for i, f in enumerate(found))
+            self._leaves = [leaf for leaf in leaves if leaf is not None]
         return self._leaves
 
     def _collect(
@@ -448,26 +453,31 @@ class Scene:
             return
         out.append((name, s["link"], place))
 
-    def _leaf(self, index: int, name: str, link: str, place: np.ndarray) -> Leaf:
+    def _leaf(self, index: int, name: str, link: str, place: np.ndarray) -> Leaf | None:
         primitive = self.tree.shapes[name]["primitive"]
         params = self.tree.params(name)
         area = surface_area(primitive, params)
-        k = int(np.clip(area / SURFACE_SPACING**2, SURFACE_MIN, SURFACE_MAX))
-        pts, nrm = sample_surface(primitive, params, k, np.random.default_rng(index))
+        if not area > 0 or 2 * volume(primitive, params) / area > THIN:
+            return None
         world = np.linalg.inv(self._own_motion(link)) @ place  # world <- primitive, at inst.q
-        pts = np.asarray(pts) @ world[:3, :3].T + world[:3, 3]
-        nrm = np.asarray(nrm) @ world[:3, :3].T
-        centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
-        radius = float(np.linalg.norm(pts - centre, axis=1).max()) if len(pts) else 0.0
-        return Leaf(link, pts, nrm, centre, radius)
+        lo, hi = bounds(primitive, params)
+        centre = world[:3, :3] @ ((lo + hi) / 2) + world[:3, 3]
+        return Leaf(
+            link, primitive, params, world, index, area, centre, np.linalg.norm(hi - lo) / 2
+        )
 
     def surface(self, leaf: Leaf) -> tuple[np.ndarray, np.ndarray]:
         """The leaf's samples on the scene's outer surface (not inside another shape, not
-        carved away by a difference), with their outward normals; filtered on first use."""
-        if leaf.kept is None:
-            d = self.sdf([leaf.points])[0]
-            leaf.kept = np.abs(d) <= SURFACE_ON
-        return leaf.points[leaf.kept], leaf.normals[leaf.kept]
+        carved away by a difference), with their outward normals; drawn on first use."""
+        if leaf.points is None or leaf.normals is None:
+            k = int(np.clip(leaf.area / SURFACE_SPACING**2, SURFACE_MIN, SURFACE_MAX))
+            rng = np.random.default_rng(leaf.index)
+            pts, nrm = sample_surface(leaf.primitive, leaf.params, k, rng)
+            pts = np.asarray(pts) @ leaf.world[:3, :3].T + leaf.world[:3, 3]
+            nrm = np.asarray(nrm) @ leaf.world[:3, :3].T
+            kept = np.abs(self.sdf([pts])[0]) <= SURFACE_ON
+            leaf.points, leaf.normals = pts[kept], nrm[kept]
+        return leaf.points, leaf.normals
 
     def inside(
         self, boxes: Boxes, pose: np.ndarray, q: np.ndarray | None = None, skip: str | None = None
@@ -498,11 +508,12 @@ class Scene:
             return 0.0, ""
         points, normals = np.concatenate(pts), np.concatenate(nrm)
         world = pose @ boxes.poses  # (K, 4, 4)
-        local = (
-            np.einsum("nj,kji->kni", points, world[:, :3, :3])
-            - np.einsum("kj,kji->ki", world[:, :3, 3], world[:, :3, :3])[:, None, :]
-        )  # (K, n, 3): each point in each box's frame
-        room = (boxes.halves[:, None, :] - np.abs(local)).min(axis=2)  # (K, n)
+        rot = world[:, :3, :3]
+        # each point in each box's frame in one product: p R_k - c_k R_k, (n, K, 3)
+        offsets = np.einsum("kj,kji->ki", world[:, :3, 3], rot)
+        local = points @ rot.transpose(1, 0, 2).reshape(3, -1) - offsets.reshape(-1)
+        local = local.reshape(len(points), len(rot), 3)
+        room = (boxes.halves[None] - np.abs(local)).min(axis=2).T  # (K, n): < 0 outside
         k_idx, n_idx = np.nonzero(room > CLEAR)
         if not len(k_idx):
             return 0.0, ""
@@ -518,15 +529,16 @@ class Scene:
 
     def _moved(self, q: np.ndarray) -> set[str]:
         """The links that stand elsewhere with the joints at ``q`` than at the instance's."""
-        out = set()
-        for leaf in self.leaves():
-            if leaf.link in out:
-                continue
-            here = self._link_poses(leaf.link, self.inst.q[None, :])[0]
-            there = self._link_poses(leaf.link, q[None, :])[0]
-            if not np.allclose(here, there, atol=1e-9):
-                out.add(leaf.link)
-        return out
+        key = q.tobytes()
+        if key not in self._moved_at:
+            out = set()
+            for link in {leaf.link for leaf in self.leaves()}:
+                here = self._link_poses(link, self.inst.q[None, :])[0]
+                there = self._link_poses(link, q[None, :])[0]
+                if not np.allclose(here, there, atol=1e-9):
+                    out.add(link)
+            self._moved_at[key] = out
+        return self._moved_at[key]
 
     def _own_motion(self, link: str) -> np.ndarray:
         """World -> the link's rest frame at the instance's own joints (computed once)."""
@@ -544,15 +556,19 @@ class Scene:
 
 @dataclass
 class Leaf:
-    """One primitive's raw surface samples (world, at the instance's joints), its bounding
-    sphere, and which samples lie on the scene's outer surface (``Scene.surface`` fills it)."""
+    """One thin primitive of the scene: where it is (world <- primitive, at the instance's
+    joints), its bounding sphere, and its samples on the outer surface once drawn."""
 
     link: str
-    points: np.ndarray
-    normals: np.ndarray
+    primitive: str
+    params: dict[str, Any]
+    world: np.ndarray
+    index: int  # its sampling seed
+    area: float
     centre: np.ndarray
     radius: float
-    kept: np.ndarray | None = None
+    points: np.ndarray | None = None
+    normals: np.ndarray | None = None
 
 
 def in_world(points: np.ndarray, pose: np.ndarray) -> np.ndarray:

@@ -436,10 +436,16 @@ def _geometry(
             return reason
     q = np.array([ctx.inst.q, ctx.inst.q])
     found = ctx.scene.deepest([sw.approach, sw.closing], [hand, hand], q)
+    for (depth, part), when in zip(found, ("while coming in", "while closing")):
+        if depth > PENETRATION:
+            return f"the {part} enters the part {depth * 1e3:.0f} mm {when}"
     # and the other way: the part's surface inside the swept boxes (a plate thinner than the
     # face grid's spacing slices between its samples)
-    found += [ctx.scene.inside(sw.approach_boxes, hand), ctx.scene.inside(sw.closing_boxes, hand)]
-    for (depth, part), when in zip(found, ("while coming in", "while closing") * 2):
+    for boxes, when in (
+        (sw.approach_boxes, "while coming in"),
+        (sw.closing_boxes, "while closing"),
+    ):
+        depth, part = ctx.scene.inside(boxes, hand)
         if depth > PENETRATION:
             return f"the {part} enters the part {depth * 1e3:.0f} mm {when}"
     if path is None:
