@@ -19,6 +19,7 @@ def facing_robot() -> np.ndarray:
     return m
 
 
+@pytest.mark.slow
 def test_topdown_push_on_a_dimmer_finds_the_wall_plate_in_the_palm(lib: eac.Library) -> None:
     """The top-down hand pushing a dimmer's slider down with its fingertip puts its 120 mm palm
     across the 6 mm wall plate, 3 mm into it: between two of the palm's face samples (10 mm
@@ -43,7 +44,9 @@ def test_inside_measures_how_deep_a_thin_plate_reaches_into_a_box(lib: eac.Libra
     half = np.array([0.3, 0.005, 0.3])
     depth, part = scene.inside(Boxes(box[None], half[None], ("palm",)), np.eye(4))
     assert part == "palm"
-    assert depth == pytest.approx(0.003, abs=0.0008)
+    # beyond the 2 mm a box may touch, and never more than the box's 3 mm reach into the part
+    # (the depth is measured at probes along the inward normal: a lower bound, never more)
+    assert 0.002 < depth <= 0.003 + 1e-9
     # lifted 5 mm clear of the part: nothing inside
     box[1, 3] += 0.008
     assert scene.inside(Boxes(box[None], half[None], ("palm",)), np.eye(4)) == (0.0, "")

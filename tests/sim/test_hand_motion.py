@@ -30,6 +30,7 @@ def test_a_hand_that_cannot_turn_follows_a_hinge_by_translating(lib: eac.Library
     assert np.allclose(fixed.pose_at(q)[:3, 3], turning.pose_at(q)[:3, 3])
 
 
+@pytest.mark.slow
 def test_the_pusher_is_built_without_finger_joints(lib: eac.Library) -> None:
     inst = lib["Drawer"].instantiate(pose=Z_UP)
     start = np.eye(4)
