@@ -462,9 +462,8 @@ class Scene:
         world = np.linalg.inv(self._own_motion(link)) @ place  # world <- primitive, at inst.q
         lo, hi = bounds(primitive, params)
         centre = world[:3, :3] @ ((lo + hi) / 2) + world[:3, 3]
-        return Leaf(
-            link, primitive, params, world, index, area, centre, np.linalg.norm(hi - lo) / 2
-        )
+        radius = float(np.linalg.norm(hi - lo)) / 2
+        return Leaf(link, primitive, params, world, index, area, centre, radius)
 
     def surface(self, leaf: Leaf) -> tuple[np.ndarray, np.ndarray]:
         """The leaf's samples on the scene's outer surface (not inside another shape, not
