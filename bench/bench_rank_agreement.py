@@ -256,7 +256,7 @@ def main() -> int:
     for name in args.concepts or verifiable(lib):
         for pose_name, pose in poses.items():
             inst = lib[name].instantiate(pose=pose())
-            for action in inst.concept.actions:
+            for action in inst.action_names:
                 for hand in hands:
                     t0 = time.process_time()
                     options = inst.rank(action, hand)
@@ -353,7 +353,8 @@ def time_rank(args: argparse.Namespace) -> int:
     runtime had before hands were described, so it times older checkouts too."""
     lib = eac.load_library()
     names = args.concepts or (list(SMOKE) if args.smoke else verifiable(lib))
-    calls = [(lib[n].instantiate(pose=facing()), a) for n in names for a in lib[n].actions]
+    insts = [lib[n].instantiate(pose=facing()) for n in names]
+    calls = [(inst, a) for inst in insts for a in inst.action_names]
     hand = Gripper.panda()
     for inst, a in calls:  # warm: native kernels loaded, sweeps cached
         inst.rank(a, hand)

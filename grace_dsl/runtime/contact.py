@@ -8,6 +8,13 @@ on the point). ``hand_poses`` turns grasp poses into hand poses for each; ``Hand
 hand's boxes as they come in (backed off along the contact's -z, then fingers closing) and hold;
 ``Scene`` evaluates the part's signed distance at several joint states in one pass per shape, so
 a whole follow path costs about as much as one query.
+
+Sampling the hand's faces misses a part thinner than the sample spacing that slices into a box
+between two samples (a 6 mm wall plate across a palm sampled every 10 mm). So the check also runs
+the other way: points on the part's surface near the hand (``Scene.surface``, sampled once per
+instance and shape, cheap) are tested for lying inside the hand's swept boxes, analytically; a
+point inside is then followed along the part's inward normal to measure how deep the part reaches
+into the box.
 """
 
 from __future__ import annotations
@@ -15,10 +22,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grace_dsl.geometry.props import bounds, volume
+from grace_dsl.geometry.sample import sample_surface, surface_area
 from grace_dsl.geometry.sdf import FORMULAS, NumpyOps
 from grace_dsl.runtime.gripper import FingerBox, Gripper, box_surface_grid
 
@@ -31,6 +40,15 @@ if TYPE_CHECKING:
 PAD_SPACING = 0.005  # m between sample points on pads and finger blocks
 PALM_SPACING = 0.010  # m between sample points on the palm
 CLEAR = 0.002  # m of penetration that counts as touching (the rubber pads give that much)
+# The reverse check samples the surface of thin primitives only: a part thicker than the face
+# grids' spacing cannot pass between two face samples, so the forward check sees it. A
+# primitive's thickness is taken as 2 volume / area (a plate's thickness, a rod's radius, a
+# tube's wall). About one sample per SURFACE_SPACING square, SURFACE_MIN to SURFACE_MAX each.
+THIN = 0.012  # m
+SURFACE_SPACING = 0.005  # m
+SURFACE_MIN, SURFACE_MAX = 100, 1500
+SURFACE_ON = 1e-4  # m: a sample this close to the scene's zero level is on its outer surface
+PROBES = 4  # points along the inward normal at which a sample inside a box measures the depth
 
 # Faces of the closed fingers a side push may use: outer normal (hand frame) and which axis it is.
 SIDE_FACES = ((0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0))
@@ -149,15 +167,50 @@ class Cloud:
 
 
 @dataclass(frozen=True)
+class Boxes:
+    """The volumes some boxes sweep (hand frame), for analytic containment tests: poses (K, 4,
+    4) with the box frame's rotation and centre, half extents (K, 3), the box each one is."""
+
+    poses: np.ndarray
+    halves: np.ndarray
+    parts: tuple[str, ...]
+
+    @staticmethod
+    def of(items: list[tuple[np.ndarray, np.ndarray, str]]) -> Boxes:
+        if not items:
+            return Boxes(np.zeros((0, 4, 4)), np.zeros((0, 3)), ())
+        return Boxes(
+            np.stack([i[0] for i in items]),
+            np.stack([i[1] for i in items]),
+            tuple(i[2] for i in items),
+        )
+
+    def reach(self) -> tuple[np.ndarray, float]:
+        """A sphere (hand frame) holding every box: centre and radius."""
+        if not len(self.parts):
+            return np.zeros(3), 0.0
+        centres = self.poses[:, :3, 3]
+        lo = (centres - np.linalg.norm(self.halves, axis=1)[:, None]).min(axis=0)
+        hi = (centres + np.linalg.norm(self.halves, axis=1)[:, None]).max(axis=0)
+        mid = (lo + hi) / 2
+        radius = np.linalg.norm(centres - mid, axis=1) + np.linalg.norm(self.halves, axis=1)
+        return mid, float(radius.max())
+
+
+@dataclass(frozen=True)
 class HandSweep:
     """The hand's boxes, sampled on their surfaces, in the phases of one grasp (hand frame):
     ``approach`` the hand coming in along the contact's +z over the approach distance with its
     fingers open, ``closing`` the fingers closing to the grasp's width, and ``hold`` the boxes at
-    the grasp (what a follow path carries)."""
+    the grasp (what a follow path carries); the ``*_boxes`` are the same volumes as boxes, for
+    the reverse check (the part's surface inside them)."""
 
     approach: Cloud
     closing: Cloud
     hold: Cloud
+    approach_boxes: Boxes
+    closing_boxes: Boxes
+    hold_boxes: Boxes
 
 
 def sweep(gripper: Gripper, direction: np.ndarray, open_width: float, hold: float) -> HandSweep:
@@ -174,18 +227,32 @@ def _sweep(
 ) -> HandSweep:
     back = -gripper.approach_distance * np.asarray(direction, float)
     approach = Cloud.of(*_points(gripper.hand_boxes(open_width), back))
+    approach_boxes = Boxes.of(
+        [v for b in gripper.hand_boxes(open_width) for v in swept_volumes(b, back)]
+    )
     closing = Cloud.of(np.zeros((0, 3)), ())
+    closing_items: list[tuple[np.ndarray, np.ndarray, str]] = []
     if open_width > hold:
         pts, parts = [], []
         for b in gripper.hand_boxes(hold):
             if b.part == "palm":
                 continue
             side = 1.0 if b.pose[1, 3] >= 0 else -1.0  # each finger opens along its own side
-            p, _ = _points((b,), np.array([0.0, side * (open_width - hold) / 2, 0.0]))
+            offset = np.array([0.0, side * (open_width - hold) / 2, 0.0])
+            p, _ = _points((b,), offset)
             pts.append(p)
             parts += [_label(b)] * len(p)
+            closing_items += swept_volumes(b, offset)
         closing = Cloud.of(np.concatenate(pts), tuple(parts))
-    return HandSweep(approach, closing, Cloud.of(*_points(gripper.hand_boxes(hold), np.zeros(3))))
+    held = gripper.hand_boxes(hold)
+    return HandSweep(
+        approach,
+        closing,
+        Cloud.of(*_points(held, np.zeros(3))),
+        approach_boxes,
+        Boxes.of(closing_items),
+        Boxes.of([v for b in held for v in swept_volumes(b, np.zeros(3))]),
+    )
 
 
 def _label(box: FingerBox) -> str:
@@ -221,6 +288,32 @@ def swept_box(box: FingerBox, back: np.ndarray, spacing: float) -> np.ndarray:
     count = max(2, math.ceil(length / step) + 1)
     grid = box_surface_grid(box, spacing)
     return np.concatenate([grid + t * back for t in np.linspace(0.0, 1.0, count)])
+
+
+def swept_volumes(box: FingerBox, back: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """The volume a box sweeps moving from ``pose + back`` to ``pose``, as boxes (pose, half
+    extents, label): one longer box when ``back`` lies along one of its axes, else copies of it
+    at most half a box apart (their union covers the sweep but for slivers at the corners)."""
+    half = np.asarray(box.half_extents, dtype=float)
+    length = float(np.linalg.norm(back))
+    label = _label(box)
+    if length < 1e-12:
+        return [(box.pose, half, label)]
+    local = box.pose[:3, :3].T @ back
+    axis = int(np.argmax(np.abs(local)))
+    if np.all(np.delete(np.abs(local), axis) < 1e-9):
+        grown = half.copy()
+        grown[axis] += length / 2
+        pose = box.pose.copy()
+        pose[:3, 3] += back / 2
+        return [(pose, grown, label)]
+    count = max(2, math.ceil(length / min(half)) + 1)
+    out = []
+    for t in np.linspace(0.0, 1.0, count):
+        pose = box.pose.copy()
+        pose[:3, 3] += t * back
+        out.append((pose, half, label))
+    return out
 
 
 # ---- the part at several joint states -----------------------------------------------------------
@@ -259,6 +352,8 @@ class Scene:
         self.placements = {n: self.tree.placement(n) for n in self.names}
         self._own: dict[str, np.ndarray] = {}  # world -> rest, per link, at the instance's q
         self._inv: dict[str, np.ndarray] = {}  # each shape's placement inverted
+        self._leaves: list[Leaf] | None = None  # the thin primitives, sampled lazily
+        self._moved_at: dict[bytes, set[str]] = {}
 
     def sdf(
         self, points: list[np.ndarray], qs: np.ndarray | None = None, skip: str | None = None
@@ -335,6 +430,115 @@ class Scene:
             out.append((max(0.0, -float(dk[i])), parts[i]))
         return out
 
+    # -- the reverse check: the part's surface inside the hand's boxes
+    def leaves(self) -> list[Leaf]:
+        """Every thin primitive whose surface can be outer (a difference's first operand, a
+        union's operands), with its bounding sphere at the instance's joints; cached."""
+        if self._leaves is None:
+            found: list[tuple[str, str, np.ndarray]] = []
+            for name in self.names:
+                self._collect(name, self.placements[name], found)
+            leaves = (self._leaf(i, *f) for i, f in enumerate(found))
+            self._leaves = [leaf for leaf in leaves if leaf is not None]
+        return self._leaves
+
+    def _collect(
+        self, name: str, place: np.ndarray, out: list[tuple[str, str, np.ndarray]]
+    ) -> None:
+        s = self.tree.shapes[name]
+        if s["primitive"] in ("union", "difference"):
+            ops = s["operands"] if s["primitive"] == "union" else s["operands"][:1]
+            for op in ops:
+                self._collect(op, place @ self.tree.relative(op), out)
+            return
+        out.append((name, s["link"], place))
+
+    def _leaf(self, index: int, name: str, link: str, place: np.ndarray) -> Leaf | None:
+        primitive = self.tree.shapes[name]["primitive"]
+        params = self.tree.params(name)
+        area = surface_area(primitive, params)
+        if not area > 0 or 2 * volume(primitive, params) / area > THIN:
+            return None
+        world = np.linalg.inv(self._own_motion(link)) @ place  # world <- primitive, at inst.q
+        lo, hi = bounds(primitive, params)
+        centre = world[:3, :3] @ ((lo + hi) / 2) + world[:3, 3]
+        radius = float(np.linalg.norm(hi - lo)) / 2
+        return Leaf(link, primitive, params, world, index, area, centre, radius)
+
+    def surface(self, leaf: Leaf) -> tuple[np.ndarray, np.ndarray]:
+        """The leaf's samples on the scene's outer surface (not inside another shape, not
+        carved away by a difference), with their outward normals; drawn on first use."""
+        if leaf.points is None or leaf.normals is None:
+            k = int(np.clip(leaf.area / SURFACE_SPACING**2, SURFACE_MIN, SURFACE_MAX))
+            rng = np.random.default_rng(leaf.index)
+            pts, nrm = sample_surface(leaf.primitive, leaf.params, k, rng)
+            pts = np.asarray(pts) @ leaf.world[:3, :3].T + leaf.world[:3, 3]
+            nrm = np.asarray(nrm) @ leaf.world[:3, :3].T
+            kept = np.abs(self.sdf([pts])[0]) <= SURFACE_ON
+            leaf.points, leaf.normals = pts[kept], nrm[kept]
+        return leaf.points, leaf.normals
+
+    def inside(
+        self, boxes: Boxes, pose: np.ndarray, q: np.ndarray | None = None, skip: str | None = None
+    ) -> tuple[float, str]:
+        """How deep the part reaches into ``boxes`` placed at ``pose`` (m; 0 if no surface
+        sample lies inside one by more than ``CLEAR``) and in which box, the joints at ``q``
+        (default: the instance's). Only links that stand where they stand at the instance's
+        joints are sampled, and none on link ``skip``; a sample inside a box is followed along
+        its inward normal (``PROBES`` points up to its distance from the box's faces) and the
+        deepest signed distance there is the depth."""
+        if not len(boxes.parts):
+            return 0.0, ""
+        q = self.inst.q if q is None else np.asarray(q, float)
+        moved = set() if np.all(q == self.inst.q) else self._moved(q)
+        mid, radius = boxes.reach()
+        centre = pose[:3, :3] @ mid + pose[:3, 3]
+        pts, nrm = [], []
+        for leaf in self.leaves():
+            if leaf.link == skip or leaf.link in moved:
+                continue
+            if np.linalg.norm(leaf.centre - centre) > radius + leaf.radius:
+                continue
+            p, n = self.surface(leaf)
+            near = np.linalg.norm(p - centre, axis=1) <= radius
+            pts.append(p[near])
+            nrm.append(n[near])
+        if not pts or not sum(map(len, pts)):
+            return 0.0, ""
+        points, normals = np.concatenate(pts), np.concatenate(nrm)
+        world = pose @ boxes.poses  # (K, 4, 4)
+        rot = world[:, :3, :3]
+        # each point in each box's frame in one product: p R_k - c_k R_k, (n, K, 3)
+        offsets = np.einsum("kj,kji->ki", world[:, :3, 3], rot)
+        local = points @ rot.transpose(1, 0, 2).reshape(3, -1) - offsets.reshape(-1)
+        local = local.reshape(len(points), len(rot), 3)
+        room = (boxes.halves[None] - np.abs(local)).min(axis=2).T  # (K, n): < 0 outside
+        k_idx, n_idx = np.nonzero(room > CLEAR)
+        if not len(k_idx):
+            return 0.0, ""
+        order = np.argsort(-room[k_idx, n_idx])[:256]  # the deepest few hundred suffice
+        k_idx, n_idx = k_idx[order], n_idx[order]
+        steps = np.arange(1, PROBES + 1) / PROBES
+        along = room[k_idx, n_idx][:, None] * steps[None, :]  # (c, PROBES)
+        probes = points[n_idx][:, None, :] - normals[n_idx][:, None, :] * along[:, :, None]
+        d = self.sdf([probes.reshape(-1, 3)], q[None, :], skip)[0].reshape(len(n_idx), PROBES)
+        depth = -d.min(axis=1)
+        i = int(np.argmax(depth))
+        return max(0.0, float(depth[i])), boxes.parts[int(k_idx[i])]
+
+    def _moved(self, q: np.ndarray) -> set[str]:
+        """The links that stand elsewhere with the joints at ``q`` than at the instance's."""
+        key = q.tobytes()
+        if key not in self._moved_at:
+            out = set()
+            for link in {leaf.link for leaf in self.leaves()}:
+                here = self._link_poses(link, self.inst.q[None, :])[0]
+                there = self._link_poses(link, q[None, :])[0]
+                if not np.allclose(here, there, atol=1e-9):
+                    out.add(link)
+            self._moved_at[key] = out
+        return self._moved_at[key]
+
     def _own_motion(self, link: str) -> np.ndarray:
         """World -> the link's rest frame at the instance's own joints (computed once)."""
         if link not in self._own:
@@ -347,6 +551,23 @@ class Scene:
             return np.broadcast_to(self.kin.link_pose(link), (len(qs), 4, 4))
         poses = np.asarray(self.kin.link_pose(link, qs), float)
         return poses.reshape(len(qs), 4, 4)
+
+
+@dataclass
+class Leaf:
+    """One thin primitive of the scene: where it is (world <- primitive, at the instance's
+    joints), its bounding sphere, and its samples on the outer surface once drawn."""
+
+    link: str
+    primitive: str
+    params: dict[str, Any]
+    world: np.ndarray
+    index: int  # its sampling seed
+    area: float
+    centre: np.ndarray
+    radius: float
+    points: np.ndarray | None = None
+    normals: np.ndarray | None = None
 
 
 def in_world(points: np.ndarray, pose: np.ndarray) -> np.ndarray:

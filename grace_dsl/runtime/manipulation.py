@@ -18,7 +18,9 @@ checks all of it over the grasp's free-parameter range (and spins, for symmetric
 - **geometry**: the hand's boxes (pads, finger blocks, palm) against the instance's signed
   distance while it comes in (backed off along the contact's -z, fingers open for a pinch, then
   closing), at the grasp, and along the whole follow path of a joint action (the instance at each
-  joint value), each allowed ``PENETRATION`` (the rubber pads give that much).
+  joint value), each allowed ``PENETRATION`` (the rubber pads give that much); both ways: the
+  boxes' face samples in the part, and the part's surface samples in the swept boxes (a thin
+  plate between two face samples).
 
 A push may be made with the fingertips, the side of a closed finger or the palm (``contacts``);
 the first of those that works is the option's ``contact``. Options are ordered feasible first,
@@ -437,13 +439,24 @@ def _geometry(
     for (depth, part), when in zip(found, ("while coming in", "while closing")):
         if depth > PENETRATION:
             return f"the {part} enters the part {depth * 1e3:.0f} mm {when}"
+    # and the other way: the part's surface inside the swept boxes (a plate thinner than the
+    # face grid's spacing slices between its samples)
+    for boxes, when in (
+        (sw.approach_boxes, "while coming in"),
+        (sw.closing_boxes, "while closing"),
+    ):
+        depth, part = ctx.scene.inside(boxes, hand)
+        if depth > PENETRATION:
+            return f"the {part} enters the part {depth * 1e3:.0f} mm {when}"
     if path is None:
         return None
     # along the path the hand rides its link: only the other links can come into its way
     poses, qs = path[0][1:], path[1][1:]
     link = ctx.inst.concept.grasps[name].link
     found = ctx.scene.deepest([sw.hold] * len(poses), list(poses), qs, skip=link)
-    for (depth, part), qk in zip(found, qs):
+    for (depth, part), pose, qk in zip(found, poses, qs):
+        if depth <= PENETRATION:
+            depth, part = ctx.scene.inside(sw.hold_boxes, pose, qk, skip=link)
         if depth > PENETRATION:
             at = f"{ctx.action.joint} = {float(qk[_joint(ctx)]):.3g}"
             return f"the {part} enters the part {depth * 1e3:.0f} mm along the path (at {at})"

@@ -25,6 +25,7 @@ from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.manipulation import CLEARANCE, Option
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.hand_motion import follower_for
 from grace_dsl.sim.model import zup_pose
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
@@ -86,7 +87,7 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
     usable = [o for o in options if o.feasible]
     if not usable:
-        why = options[0].reasons[0] if options and options[0].reasons else "no option"
+        why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons) or "no option"
         return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst)
     outcome = execute(inst, task, usable[0], gripper, config.max_seconds)
     lo, hi = inst.joint_limits()[task.joint]
@@ -174,7 +175,7 @@ def execute(
     aimed = goal is not None
     if goal is None:
         goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
-    follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
+    follower = follower_for(gripper, inst, task.joint, grasp, goal, task.sign)
     done_at = goal - task.sign * GOAL_TOLERANCE * (hi - lo) if aimed else None
     slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at)
     if world.unstable():
