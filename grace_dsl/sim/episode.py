@@ -55,7 +55,9 @@ CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 m
 PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
 RETREAT = 0.1  # m backed off along -z after letting go
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
-PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch
+PENETRATION = 0.002  # m the hand may touch the object at the deeper pinch
+CLOSING_CHECKS = 4  # openings checked between the open hand and the closed pinch
+PATH_CHECKS = 6  # joint values checked along the path with the closed pinch
 
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
@@ -126,8 +128,11 @@ def execute(
     pinch = option.mode == "pinch"
     width = inst.grasp_width(option.grasp) if pinch else None
     open_to = gripper.max_width if width is None else min(width + 2 * CLEARANCE, gripper.max_width)
+    lo, hi = inst.joint_limits()[task.joint]
+    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     if pinch:
-        grasp = deeper(inst, gripper, grasp, open_to)
+        closed = open_to if width is None else width
+        grasp = deeper(inst, gripper, grasp, (open_to, closed), _path_of(inst, task, goal))
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
     world = World.build(inst, gripper, start)
@@ -147,8 +152,6 @@ def execute(
         _run(world, CLOSE_TIME, lambda: grasp)
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
-    lo, hi = inst.joint_limits()[task.joint]
-    goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
     slipped = _follow(world, task, follower, lo, hi, budget - world.time)
     if world.unstable():
@@ -158,20 +161,59 @@ def execute(
     return _finish(world, task, arrived, slipped, "", hold=hold)
 
 
-def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) -> np.ndarray:
+def deeper(
+    inst: Instance,
+    gripper: Gripper,
+    grasp: np.ndarray,
+    widths: tuple[float, float],
+    path: Callable[[np.ndarray], list[tuple[Instance, np.ndarray]]] | None = None,
+) -> np.ndarray:
     """The pinch pose moved in along its approach so that the pads' middle, not their tips'
-    edge, closes on the part: as deep as ``PINCH_DEPTH`` allows without the open hand entering
-    the part (a grasp's origin sits at the fingertips, where a round bar squeezes out)."""
-    points = np.concatenate(
-        [box_surface_grid(b, 0.003) for b in gripper.hand_boxes(min(width, gripper.max_width))]
-    )
+    edge, closes on the part: the deepest of ``PINCH_DEPTHS`` at which the hand enters the object
+    by less than ``PENETRATION`` (a grasp's origin sits at the fingertips, where a round bar
+    squeezes out). ``widths`` is (open, closed): the hand is checked open, at openings while it
+    closes (a pad that passes under a laptop's base would close on the base with the lid), and,
+    given ``path`` (the object and the hand pose along the follow path for a grasp pose), closed
+    along the path (a pad deep under a lid's lip lands on the box's wall as the lid shuts)."""
+    open_to, closed = widths
+    sweep = [_hand_points(gripper, w) for w in np.linspace(open_to, closed, CLOSING_CHECKS)]
     for depth in PINCH_DEPTHS:
         pose = grasp.copy()
         pose[:3, 3] += grasp[:3, 2] * depth
-        world = points @ pose[:3, :3].T + pose[:3, 3]
-        if float(np.min(inst.sdf(world))) > -PENETRATION:
+        checks = [(inst, pose, points) for points in sweep]
+        if path is not None:
+            checks += [(at, hand, sweep[-1]) for at, hand in path(pose)]
+        if all(_clear(at, hand, points) for at, hand, points in checks):
             return pose
     return grasp
+
+
+def _hand_points(gripper: Gripper, width: float) -> np.ndarray:
+    """Points on the surface of every box of the hand opened to ``width`` (gripper frame)."""
+    boxes = gripper.hand_boxes(min(width, gripper.max_width))
+    return np.concatenate([box_surface_grid(b, 0.003) for b in boxes])
+
+
+def _clear(inst: Instance, pose: np.ndarray, points: np.ndarray) -> bool:
+    """The hand's ``points`` at ``pose`` enter ``inst`` by less than ``PENETRATION``."""
+    return float(np.min(inst.sdf(points @ pose[:3, :3].T + pose[:3, 3]))) > -PENETRATION
+
+
+def _path_of(
+    inst: Instance, task: TaskAction, goal: float
+) -> Callable[[np.ndarray], list[tuple[Instance, np.ndarray]]]:
+    """For a grasp pose: the object and the hand (riding the moving link) at ``PATH_CHECKS``
+    joint values from the start towards ``goal`` (within the joint's range)."""
+    lo, hi = inst.joint_limits()[task.joint]
+    q0 = inst.joints[task.joint]
+    qs = np.linspace(q0, min(max(goal, lo), hi), PATH_CHECKS + 1)[1:]
+    moved = [inst.with_joints({task.joint: float(q)}) for q in qs]
+
+    def along(pose: np.ndarray) -> list[tuple[Instance, np.ndarray]]:
+        follower = PathFollower.from_grasp(inst, task.joint, pose, goal, task.sign)
+        return [(at, follower.pose_at(float(q))) for at, q in zip(moved, qs, strict=True)]
+
+    return along
 
 
 def _follow(
