@@ -135,7 +135,7 @@ def execute(
         grasp = deeper(inst, gripper, grasp, (open_to, closed), _path_of(inst, task, goal))
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
-    world = World.build(inst, gripper, start)
+    world = World.build(inst, gripper, start, driven=task.joint)
     if pinch:
         world.set_fingers(open_to, at_once=True)
     travel = float(np.linalg.norm(grasp[:3, 3] - start[:3, 3]))
