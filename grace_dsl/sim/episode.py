@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -53,6 +53,7 @@ SLIP = 0.05  # m the hand may drift off the path at the measured joint value bef
 SLIP_TIME = 0.3  # s the drift must last
 CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 ms)
 PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
+PRESS_MIN = 0.01  # m of hand travel a close aims past its stop at least (15 N at 1500 N/m)
 RETREAT = 0.1  # m backed off along -z after letting go
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
 PENETRATION = 0.002  # m the hand may touch the object at the deeper pinch
@@ -153,11 +154,19 @@ def execute(
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
+    if task.sign < 0:  # a short lever's 3 % is a fraction of a millimetre: friction wins there
+        past = follower.lookahead(lo) * PRESS_MIN / follower.lead
+        follower = replace(follower, goal=min(goal, lo - past))
     slipped = _follow(world, task, follower, lo, hi, budget - world.time)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
-    # a closed part is held pressed against its stop while the hand lets go
-    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    # a closed part is held pressed against its stop while the hand lets go: the hand as at the
+    # stop, pushed on to where the path goes past it (not turned past it too: a short lever
+    # pinched and twisted beyond its stop sprang back up 0.03 rad)
+    hold = None
+    if task.sign < 0 and not slipped:
+        hold = follower.pose_at(lo)
+        hold[:3, 3] = follower.pose_at(follower.goal)[:3, 3]
     return _finish(world, task, arrived, slipped, "", hold=hold)
 
 
