@@ -66,29 +66,32 @@ def main(argv: list[str] | None = None) -> int:
     if args.smoke:
         categories, episodes = (categories[0],), 1
     started = time.perf_counter()
-    records = run_all(categories, episodes, args.hand, args.seed, args.workers)
-    wall = time.perf_counter() - started
-    summary = summarize(records)
-    print_table(summary)
     out = args.out or RESULTS
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(
-        json.dumps(
-            {
-                "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
-                "hand": args.hand,
-                "episodes": episodes,
-                "seed": args.seed,
-                "workers": args.workers,
-                "wall_seconds": round(wall, 1),
-                "summary": summary,
-                "records": [r.to_json() for r in records],
-            },
-            indent=1,
-        )
-        + "\n"
-    )
+    header = {
+        "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
+        "hand": args.hand,
+        "episodes": episodes,
+        "seed": args.seed,
+        "workers": args.workers,
+    }
+    records: list[EpisodeRecord] = []
+    for category in categories:  # the JSON rewritten after each: a long run keeps what it did
+        records += run_all((category,), episodes, args.hand, args.seed, args.workers)
+        write(out, header, records, time.perf_counter() - started)
+    print_table(summarize(records))
     return 0
+
+
+def write(out: Path, header: dict[str, Any], records: list[EpisodeRecord], wall: float) -> None:
+    """The result file: the run's settings, the summary rows and every record."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    body = {
+        **header,
+        "wall_seconds": round(wall, 1),
+        "summary": summarize(records),
+        "records": [r.to_json() for r in records],
+    }
+    out.write_text(json.dumps(body, indent=1) + "\n")
 
 
 def run_all(
