@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -63,6 +63,15 @@ PATH_CHECKS = 6  # joint values checked along the path with the closed pinch
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     """Run one episode of ``config`` with ``seed``; the same pair gives the same record."""
+    return episode_and_world(config, seed)[0]
+
+
+def episode_and_world(
+    config: EpisodeConfig, seed: int, trace_every: int = 0
+) -> tuple[EpisodeRecord, World | None]:
+    """``run_episode``'s record and the world as the episode left it (None if the hand never
+    moved); ``trace_every`` > 0 records every body's pose that often (physics steps) on the
+    world, for a replay. Recording changes nothing in the physics."""
     _check_config(config)
     started = time.perf_counter()
     concept = _library()[config.concept]
@@ -70,7 +79,7 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     try:
         draw = draw_episode(config, concept, seed)
     except RequirementError as exc:
-        return _early(config, seed, task, "invalid_draw", str(exc), started)
+        return _early(config, seed, task, "invalid_draw", str(exc), started), None
     ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
     inst = concept.instantiate(
         pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
@@ -79,17 +88,18 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     try:
         options = inst.rank(task.action, gripper=gripper)
     except GraceError as exc:
-        return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+        early = _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+        return early, None
     usable = [o for o in options if o.feasible]
     if not usable:
         why = options[0].reasons[0] if options and options[0].reasons else "no option"
-        return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst)
-    outcome = execute(inst, task, usable[0], gripper, config.max_seconds)
+        return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst), None
+    outcome = execute(inst, task, usable[0], gripper, config.max_seconds, trace_every)
     lo, hi = inst.joint_limits()[task.joint]
     strict = strict_success(config.task, outcome.q_final, lo, hi)
     lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
     reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
-    return EpisodeRecord(
+    record = EpisodeRecord(
         config=config,
         seed=seed,
         joint=task.joint,
@@ -106,6 +116,7 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         sim_seconds=outcome.sim_seconds,
         wall_seconds=time.perf_counter() - started,
     )
+    return record, outcome.world
 
 
 @dataclass(frozen=True)
@@ -118,10 +129,16 @@ class Outcome:
     slipped: bool  # the hand lost the part while following
     unstable: bool = False
     detail: str = ""
+    world: World | None = field(default=None, compare=False, repr=False)
 
 
 def execute(
-    inst: Instance, task: TaskAction, option: Option, gripper: Gripper, budget: float
+    inst: Instance,
+    task: TaskAction,
+    option: Option,
+    gripper: Gripper,
+    budget: float,
+    trace_every: int = 0,
 ) -> Outcome:
     """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds."""
     grasp = option.hand_pose if option.hand_pose is not None else option.pose
@@ -137,6 +154,7 @@ def execute(
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
     world = World.build(inst, gripper, start, driven=task.joint)
+    world.trace_every = trace_every
     if pinch:
         world.set_fingers(open_to, at_once=True)
     travel = float(np.linalg.norm(grasp[:3, 3] - start[:3, 3]))
@@ -286,6 +304,7 @@ def _finish(
         slipped,
         unstable or world.unstable(),
         detail,
+        world,
     )
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -52,6 +52,11 @@ class World:
     hand_body: int
     impedance: Impedance
     finger_goal: float = 0.0
+    #: every ``trace_every`` steps (0: never), the time, the joint positions and every body's
+    #: position and (w, x, y, z) quaternion: what a replay of the episode draws
+    trace_every: int = 0
+    trace: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    _steps: int = 0
     _target: np.ndarray | None = None
     _target_quat: np.ndarray | None = None
 
@@ -170,6 +175,9 @@ class World:
         w = self.impedance.wrench_at(pos, d.xmat[b].reshape(3, 3), target[:3, 3], self._target_quat)
         mujoco.mj_applyFT(self.model, d, w[:3], w[3:], pos, b, d.qfrc_applied)
         mujoco.mj_step(self.model, d)
+        if self.trace_every and self._steps % self.trace_every == 0:
+            self.trace.append((float(d.time), d.qpos.copy(), d.xpos.copy(), d.xquat.copy()))
+        self._steps += 1
 
 
 def _moved_by(root: ET.Element, joints: set[str]) -> list[ET.Element]:
