@@ -55,6 +55,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hand", default="panda")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
+    ap.add_argument(
+        "--self-collision",
+        action="store_true",
+        help="the object's own bodies collide with each other (in this process: --workers 1)",
+    )
     ap.add_argument("--small", action="store_true", help="3 categories, 3 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
@@ -65,6 +70,12 @@ def main(argv: list[str] | None = None) -> int:
         categories, episodes = args.categories or SMALL, 3
     if args.smoke:
         categories, episodes = (categories[0],), 1
+    if args.self_collision:
+        if args.workers != 1:
+            ap.error("--self-collision runs in this process: use --workers 1")
+        import grace_dsl.sim.world as world
+
+        world.SELF_COLLISION = True
     started = time.perf_counter()
     out = args.out or RESULTS
     header = {
@@ -73,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         "episodes": episodes,
         "seed": args.seed,
         "workers": args.workers,
+        "self_collision": args.self_collision,
     }
     records: list[EpisodeRecord] = []
     for category in categories:  # the JSON rewritten after each: a long run keeps what it did

@@ -39,6 +39,9 @@ FINGER_SPEED = 0.1  # m/s per finger: panda.urdf's finger joint velocity limit i
 LINEAR_DAMPING = 70.0  # N s/m on the hand's free joint: about critical for 1500 N/m, 0.76 kg
 ANGULAR_DAMPING = 0.8  # N m s/rad
 ANGULAR_ARMATURE = 0.003  # kg m^2 added to the hand's rotation (a stiffer spring stays stable)
+#: the object's bodies collide with each other too (the export's own exclusions kept): off by
+#: default; docs/benchmarks.md has the measured difference
+SELF_COLLISION = False
 
 
 @dataclass
@@ -68,11 +71,13 @@ class World:
         impedance: Impedance | None = None,
         balanced: bool = True,
         driven: str | None = None,
+        self_collision: bool | None = None,
     ) -> World:
         """The world of ``inst`` (joints at its values) with the hand at ``hand_pose``;
         ``balanced``: the object's parts do not fall under gravity (see the module docstring);
         ``driven``: the concept joint the hand moves (None: every joint); in a balanced world
-        only its part is balanced and loses the export's holding friction."""
+        only its part is balanced and loses the export's holding friction; ``self_collision``
+        (default ``SELF_COLLISION``): the object's own bodies collide with each other."""
         exported = build_model(inst)
         root = ET.fromstring(write_mjcf(exported))
         for key in root.findall("keyframe"):  # its qpos no longer fits once the hand is in
@@ -88,7 +93,8 @@ class World:
             if geom.get("contype") == "0" and geom.get("conaffinity") == "0":
                 continue  # a visual geom (the export's whole pieces): it collides with nothing
             geom.set("contype", str(OBJECT_GROUP))
-            geom.set("conaffinity", str(HAND_GROUP))
+            among = SELF_COLLISION if self_collision is None else self_collision
+            geom.set("conaffinity", str(HAND_GROUP | (OBJECT_GROUP if among else 0)))
         spec, assets, body, actuators = build_hand(gripper, hand_pose, GRASP_FORCE)
         option = ET.Element("option", timestep=str(TIMESTEP), integrator="implicitfast")
         option.set("gravity", "0 0 -9.81")
