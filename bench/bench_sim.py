@@ -63,7 +63,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--small", action="store_true", help="3 categories, 3 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        type=Path,
+        metavar="JSON",
+        help="no run: the records of these result files as one result (--out) and one table",
+    )
     args = ap.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.out or RESULTS)
     categories = tuple(args.categories or CATEGORIES)
     episodes = args.episodes
     if args.small:
@@ -90,6 +99,30 @@ def main(argv: list[str] | None = None) -> int:
     for category in categories:  # the JSON rewritten after each: a long run keeps what it did
         records += run_all((category,), episodes, args.hand, args.seed, args.workers)
         write(out, header, records, time.perf_counter() - started)
+    print_table(summarize(records))
+    return 0
+
+
+def merge(parts: list[Path], out: Path) -> int:
+    """One result from several runs' files (a long run split across processes): the records in
+    the order given (an episode two files hold counted once: the first), the commands kept,
+    the summary recomputed."""
+    from grace_dsl.sim.report import record_from_json
+
+    loaded = [json.loads(p.read_text()) for p in parts]
+    unique = {}
+    for r in (record_from_json(r) for d in loaded for r in d["records"]):
+        unique.setdefault((r.config, r.seed), r)
+    records = list(unique.values())
+    header = {
+        "command": [d["command"] for d in loaded],
+        "hand": loaded[0]["hand"],
+        "episodes": loaded[0]["episodes"],
+        "seed": loaded[0]["seed"],
+        "workers": sum(d.get("workers", 1) for d in loaded),
+        "parts": [str(p) for p in parts],
+    }
+    write(out, header, records, max(d["wall_seconds"] for d in loaded))
     print_table(summarize(records))
     return 0
 

@@ -15,7 +15,6 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
@@ -392,9 +391,10 @@ def _check_config(config: EpisodeConfig) -> None:
         raise ParameterError(f"task must be 'open' or 'close', not {config.task!r}")
 
 
-@lru_cache(maxsize=1)
 def _library() -> Library:
-    """The standard library, compiled once per process (the disk cache makes it quick)."""
-    from grace_dsl.runtime.library import load_library
+    """The standard library, loaded once per process: the runner's copy (its workers warm it),
+    so a process that runs episodes and checks a bench's arguments loads it once, not twice."""
+    from grace_dsl.sim.runner import shared_library
 
-    return load_library()
+    library: Library = shared_library()
+    return library
