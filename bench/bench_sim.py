@@ -124,6 +124,10 @@ def merge(parts: list[Path], out: Path) -> int:
     }
     write(out, header, records, max(d["wall_seconds"] for d in loaded))
     print_table(summarize(records))
+    from grace_dsl.sim import report
+
+    title = f"flying Panda hand, oracle, {header['episodes']} episodes per task"
+    print(report.write_bar_chart(report.summarize(records), out.with_suffix(".png"), title))
     return 0
 
 
