@@ -9,6 +9,10 @@ and lenient success per concept and task, and the failure reasons.
     python bench/bench_sim.py --small            # 3 categories x 2 tasks x 3 episodes
     python bench/bench_sim.py --smoke            # 1 category x 2 tasks x 1 episode (the tests)
     python bench/bench_sim.py --episodes 100 --categories CabinetDrawer DoorLeaf
+    python bench/bench_sim.py --episodes 100 --workers 2   # the target run (2 processes)
+
+Episode i of every category and task has seed ``--seed + i``; where it runs (``--workers``)
+does not change its record.
 """
 
 from __future__ import annotations
@@ -21,10 +25,8 @@ from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
 
-from rich.progress import Progress
-
-from grace_dsl.sim.episode import run_episode
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
+from grace_dsl.sim.runner import run_episodes
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "sim.json"
@@ -52,51 +54,107 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=20, help="episodes per category and task")
     ap.add_argument("--hand", default="panda")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
+    ap.add_argument(
+        "--self-collision",
+        action="store_true",
+        help="the object's own bodies collide with each other (in this process: --workers 1)",
+    )
     ap.add_argument("--small", action="store_true", help="3 categories, 3 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        type=Path,
+        metavar="JSON",
+        help="no run: the records of these result files as one result (--out) and one table",
+    )
     args = ap.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.out or RESULTS)
     categories = tuple(args.categories or CATEGORIES)
     episodes = args.episodes
     if args.small:
         categories, episodes = args.categories or SMALL, 3
     if args.smoke:
         categories, episodes = (categories[0],), 1
-    records = run_all(categories, episodes, args.hand, args.seed)
-    summary = summarize(records)
-    print_table(summary)
+    if args.self_collision:
+        if args.workers != 1:
+            ap.error("--self-collision runs in this process: use --workers 1")
+        import grace_dsl.sim.world as world
+
+        world.SELF_COLLISION = True
+    started = time.perf_counter()
     out = args.out or RESULTS
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(
-        json.dumps(
-            {
-                "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
-                "hand": args.hand,
-                "episodes": episodes,
-                "seed": args.seed,
-                "summary": summary,
-                "records": [r.to_json() for r in records],
-            },
-            indent=1,
-        )
-        + "\n"
-    )
+    header = {
+        "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
+        "hand": args.hand,
+        "episodes": episodes,
+        "seed": args.seed,
+        "workers": args.workers,
+        "self_collision": args.self_collision,
+    }
+    records: list[EpisodeRecord] = []
+    for category in categories:  # the JSON rewritten after each: a long run keeps what it did
+        records += run_all((category,), episodes, args.hand, args.seed, args.workers)
+        write(out, header, records, time.perf_counter() - started)
+    print_table(summarize(records))
     return 0
 
 
+def merge(parts: list[Path], out: Path) -> int:
+    """One result from several runs' files (a long run split across processes): the records in
+    the order given (an episode two files hold counted once: the first), the commands kept,
+    the summary recomputed."""
+    from grace_dsl.sim.report import record_from_json
+
+    loaded = [json.loads(p.read_text()) for p in parts]
+    unique = {}
+    for r in (record_from_json(r) for d in loaded for r in d["records"]):
+        unique.setdefault((r.config, r.seed), r)
+    records = list(unique.values())
+    header = {
+        "command": [d["command"] for d in loaded],
+        "hand": loaded[0]["hand"],
+        "episodes": loaded[0]["episodes"],
+        "seed": loaded[0]["seed"],
+        "workers": sum(d.get("workers", 1) for d in loaded),
+        "parts": [str(p) for p in parts],
+    }
+    write(out, header, records, max(d["wall_seconds"] for d in loaded))
+    print_table(summarize(records))
+    from grace_dsl.sim import report
+
+    title = f"flying Panda hand, oracle, {header['episodes']} episodes per task"
+    print(report.write_bar_chart(report.summarize(records), out.with_suffix(".png"), title))
+    return 0
+
+
+def write(out: Path, header: dict[str, Any], records: list[EpisodeRecord], wall: float) -> None:
+    """The result file: the run's settings, the summary rows and every record."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    body = {
+        **header,
+        "wall_seconds": round(wall, 1),
+        "summary": summarize(records),
+        "records": [r.to_json() for r in records],
+    }
+    out.write_text(json.dumps(body, indent=1) + "\n")
+
+
 def run_all(
-    categories: tuple[str, ...], episodes: int, hand: str, seed: int
+    categories: tuple[str, ...], episodes: int, hand: str, seed: int, workers: int = 1
 ) -> list[EpisodeRecord]:
-    """Every (category, task, episode) in a plain loop, with a progress bar."""
-    jobs = [(c, t, seed + i) for c in categories for t in TASKS for i in range(episodes)]
-    records = []
-    with Progress() as bar:
-        task = bar.add_task("episodes", total=len(jobs))
-        for concept, kind, s in jobs:
-            config = EpisodeConfig(concept, kind, hand=hand)  # type: ignore[arg-type]
-            records.append(run_episode(config, s))
-            bar.advance(task)
-    return records
+    """Every (category, task, episode) through the runner (``workers`` processes), with a
+    progress bar; records in the order asked."""
+    jobs = [
+        (EpisodeConfig(c, t, hand=hand), seed + i)  # type: ignore[arg-type]
+        for c in categories
+        for t in TASKS
+        for i in range(episodes)
+    ]
+    return run_episodes(jobs, workers=workers)
 
 
 def summarize(records: list[EpisodeRecord]) -> list[dict[str, Any]]:

@@ -4,9 +4,11 @@ Every episode is ``run_episode(config, seed)`` with a seed from ``--seed`` by th
 (``grace_dsl.sim.runner.episode_seed``), run here, in ``--workers`` processes, or on Ray
 (``--ray``: a new local instance; ``--ray auto``: the running cluster; ``--ray ray://HOST:PORT``).
 ``--out DIR`` receives ``episodes.jsonl`` (one record per episode), ``summary.json`` (the table
-and the run's settings and speed), ``table.txt`` and ``success.png``; the table is printed (or the
-summary, with ``--json``). Categories default to ``DEFAULT_CATEGORIES``: drawers, doors, lids and
-windows of the standard library, every one with an ``open`` and a ``close`` action on one joint.
+and the run's settings and speed), ``table.txt``, ``success.png`` (the bar chart) and
+``failures/`` (a picture of each failed episode's last frame, the episode run again); the table
+is printed (or the summary, with ``--json``). Categories default to ``DEFAULT_CATEGORIES``:
+drawers, doors, lids and windows of the standard library, every one with an ``open`` and a
+``close`` action on one joint.
 
 Exit codes: 0 the run finished (whatever its success rates), 1 a bad argument or a failure to
 start, 2 a mode that does not exist yet (``--mode estimated`` needs perception).
@@ -107,14 +109,19 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_bench(args: Any, *, fn: Any = None, render: Any = None) -> int:
     """The body of ``grace bench``. ``fn`` replaces the episode function (default the simulated
-    episode); ``render`` draws each failure's final frame (``grace_dsl.sim.report.FrameRenderer``,
-    the scene renderer's job), none drawn without it."""
+    episode); ``render`` draws each failure's final frame (``grace_dsl.sim.report.FrameRenderer``;
+    default, for the simulated episode: the episode run again and its last frame drawn,
+    ``grace_dsl.sim.replay.failure_frame``; none for another ``fn`` without one)."""
     if getattr(args, "suite", "objects") == "tasks":
         from grace_dsl.cli.run_cmd import run_suite
 
         return run_suite(args)
     try:
         jobs = _jobs(args)
+        if render is None and fn is None:
+            from grace_dsl.sim.replay import failure_frame
+
+            render = failure_frame
         result = bench(
             jobs,
             Path(args.out),

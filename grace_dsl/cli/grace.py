@@ -131,10 +131,59 @@ def demo_episodes(output: Path, fn: Any = None) -> dict[str, Any]:
     replaces the simulated episode. Returns the run's summary."""
     from grace_dsl.cli.bench_cmd import bench, demo_jobs
 
-    result = bench(demo_jobs(), output, fn=fn, settings=None)
+    jobs = demo_jobs()
+    result = bench(jobs, output, fn=fn, settings=None)
     print_text("\nsimulated episodes (flying Panda hand, seed 0):\n" + result.table)
     print_text(f"report: {output}")
+    if fn is None:  # pictures and a replay of the real episode (another fn has no world)
+        config, seed = jobs[0]
+        demo_replay(config, seed, output / "replay")
+    if fn is None:
+        demo_arm(output / "arm.json")
     return result.summary
+
+
+def demo_arm(path: Path) -> None:
+    """One episode of the whole Panda on a base beside a drawer, executing the robot layer's
+    planned trajectory in MuJoCo (``sim.arm_episode``); its record printed and written."""
+    import json
+
+    from grace_dsl.sim.arm_episode import demo_arm_episode
+
+    record = demo_arm_episode()
+    verdict = "success" if record.strict else f"failed ({record.reason}: {record.detail})"
+    print_text(
+        f"\narm episode (the Panda on a base, {record.config.concept} {record.config.task}, "
+        f"seed {record.seed}): {verdict}; joint {record.q_initial:.3f} -> {record.q_final:.3f}"
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record.to_json(), indent=1))
+
+
+def demo_replay(config: Any, seed: int, output: Path) -> dict[str, Path]:
+    """One episode run again with its motion traced: before and after pictures from its camera
+    and the HTML viewer page replaying it. Returns the files written."""
+    from grace_dsl.cli.replay import replay_html
+    from grace_dsl.sim.episode import Z_UP
+    from grace_dsl.sim.replay import ReplayError, first_qpos, render_world, replay
+
+    record, world = replay(config, seed)
+    name = f"{config.concept}-{config.task}"
+    if world is None:
+        print_text(f"replay skipped: the hand never moved ({record.reason}: {record.detail})")
+        return {}
+    files = {"html": replay_html(world, record.joint, name, Z_UP, output / f"{name}.html")}
+    try:
+        before = render_world(
+            world, record.camera, output / f"{name}-before.png", first_qpos(world)
+        )
+        files["before"] = before
+        files["after"] = render_world(world, record.camera, output / f"{name}-after.png")
+    except ReplayError as exc:  # no OpenGL here: the page is still written
+        print_text(f"pictures skipped: {exc}")
+    for kind, path in files.items():
+        print_text(f"{kind}: {path}")
+    return files
 
 
 def _print_options(inst: Any, action: str, hand: Any) -> None:

@@ -261,7 +261,7 @@ def _pinch_in(
     back = grasp.copy()
     back[:3, 3] += grasp[:3, 2] * plan.standoff
     gripper = panda().gripper
-    deep = deeper(inst, gripper, back, gripper.max_width)
+    deep = deeper(inst, gripper, back, (gripper.max_width, gripper.max_width))
     start, posture, t0 = world.hand_pose(), world.arm_q(), world.time
 
     def move(t: float) -> np.ndarray:

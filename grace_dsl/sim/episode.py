@@ -14,8 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from functools import lru_cache
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -54,9 +53,12 @@ SLIP = 0.05  # m the hand may drift off the path at the measured joint value bef
 SLIP_TIME = 0.3  # s the drift must last
 CONTROL_EVERY = 5  # physics steps per re-anchoring of the target (100 Hz at 2 ms)
 PRESS_PAST = 0.03  # fraction of the range a close aims past its stop (pressing it home)
+PRESS_MIN = 0.01  # m of hand travel a close aims past its stop at least (15 N at 1500 N/m)
 RETREAT = 0.1  # m backed off along -z after letting go
 PINCH_DEPTHS = (0.012, 0.009, 0.006, 0.003)  # m a pinch goes in past its grasp origin, tried
-PENETRATION = 0.002  # m the open hand may touch the part at the deeper pinch
+PENETRATION = 0.002  # m the hand may touch the object at the deeper pinch
+CLOSING_CHECKS = 4  # openings checked between the open hand and the closed pinch
+PATH_CHECKS = 6  # joint values checked along the path with the closed pinch
 STILL_TIME = 2.0  # s a part sent to an explicit goal may take to come to rest in the hand
 STILL_SPEED = 0.005  # m/s or rad/s: at rest
 GOAL_TOLERANCE = 0.01  # fraction of the range short of an explicit goal that counts as there
@@ -64,18 +66,27 @@ GOAL_TOLERANCE = 0.01  # fraction of the range short of an explicit goal that co
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     """Run one episode of ``config`` with ``seed``; the same pair gives the same record."""
+    return episode_and_world(config, seed)[0]
+
+
+def episode_and_world(
+    config: EpisodeConfig, seed: int, trace_every: int = 0
+) -> tuple[EpisodeRecord, World | None]:
+    """``run_episode``'s record and the world as the episode left it (None if the hand never
+    moved); ``trace_every`` > 0 records every body's pose that often (physics steps) on the
+    world, for a replay. Recording changes nothing in the physics."""
     _check_config(config)
     if config.agent == "arm":  # the full Panda: planned by the robot layer (sim.arm_episode)
         from grace_dsl.sim.arm_episode import run_arm_episode
 
-        return run_arm_episode(config, seed)
+        return run_arm_episode(config, seed), None
     started = time.perf_counter()
     concept = _library()[config.concept]
     task = task_action(concept, config.task)
     try:
         draw = draw_episode(config, concept, seed)
     except RequirementError as exc:
-        return _early(config, seed, task, "invalid_draw", str(exc), started)
+        return _early(config, seed, task, "invalid_draw", str(exc), started), None
     ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
     inst = concept.instantiate(
         pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
@@ -84,17 +95,18 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     try:
         options = inst.rank(task.action, gripper=gripper)
     except GraceError as exc:
-        return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+        early = _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
+        return early, None
     usable = [o for o in options if o.feasible]
     if not usable:
         why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons) or "no option"
-        return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst)
-    outcome = execute(inst, task, usable[0], gripper, config.max_seconds)
+        return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst), None
+    outcome = execute(inst, task, usable[0], gripper, config.max_seconds, trace_every)
     lo, hi = inst.joint_limits()[task.joint]
     strict = strict_success(config.task, outcome.q_final, lo, hi)
     lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
     reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
-    return EpisodeRecord(
+    record = EpisodeRecord(
         config=config,
         seed=seed,
         joint=task.joint,
@@ -111,6 +123,7 @@ def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         sim_seconds=outcome.sim_seconds,
         wall_seconds=time.perf_counter() - started,
     )
+    return record, outcome.world
 
 
 @dataclass(frozen=True)
@@ -123,6 +136,7 @@ class Outcome:
     slipped: bool  # the hand lost the part while following
     unstable: bool = False
     detail: str = ""
+    world: World | None = field(default=None, compare=False, repr=False)
 
 
 def execute(
@@ -131,6 +145,7 @@ def execute(
     option: Option,
     gripper: Gripper,
     budget: float,
+    trace_every: int = 0,
     *,
     goal: float | None = None,
     world: World | None = None,
@@ -146,14 +161,20 @@ def execute(
     pinch = option.mode == "pinch"
     width = inst.grasp_width(option.grasp) if pinch else None
     open_to = gripper.max_width if width is None else min(width + 2 * CLEARANCE, gripper.max_width)
+    lo, hi = inst.joint_limits()[task.joint]
+    aimed = goal is not None
+    if goal is None:
+        goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     if pinch:
-        grasp = deeper(inst, gripper, grasp, open_to)
+        closed = open_to if width is None else width
+        grasp = deeper(inst, gripper, grasp, (open_to, closed), _path_of(inst, task, goal))
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
     if world is None:
-        world = World.build(inst, gripper, start)
+        world = World.build(inst, gripper, start, driven=task.joint)
     else:
         world.place_hand(start)
+    world.trace_every = trace_every
     began = world.time
     if pinch:
         world.set_fingers(open_to, at_once=True)
@@ -171,21 +192,26 @@ def execute(
         _run(world, CLOSE_TIME, lambda: grasp)
         if world.opening() < EMPTY:
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
-    lo, hi = inst.joint_limits()[task.joint]
-    aimed = goal is not None
-    if goal is None:
-        goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     follower = follower_for(gripper, inst, task.joint, grasp, goal, task.sign)
+    if task.sign < 0 and not aimed:  # a short lever's 3 % is a fraction of a mm: friction wins
+        past = follower.lookahead(lo) * PRESS_MIN / follower.lead
+        follower = replace(follower, goal=min(goal, lo - past))
     done_at = goal - task.sign * GOAL_TOLERANCE * (hi - lo) if aimed else None
     slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
-    # a closed part is held pressed against its stop while the hand lets go; a part sent to an
-    # explicit goal is held there (held where the hand is, it springs back and coasts away)
+    # a part sent to an explicit goal is held there until it stops (let go where the hand is, it
+    # springs back and coasts away); a closed part is held pressed against its stop while the
+    # hand lets go: the hand as at the stop, pushed on to where the path goes past it (not turned
+    # past it too: a short lever pinched and twisted beyond its stop sprang back up 0.03 rad)
     reached = done_at is not None and (world.q(task.joint) - done_at) * task.sign >= 0
-    hold = follower.pose_at(goal) if (task.sign < 0 or reached) and not slipped else None
-    if reached and hold is not None:
+    hold = None
+    if reached and not slipped:
+        hold = follower.pose_at(goal)
         _still(world, task.joint, hold)
+    elif task.sign < 0 and not slipped:
+        hold = follower.pose_at(lo)
+        hold[:3, 3] = follower.pose_at(follower.goal)[:3, 3]
     return _finish(world, task, arrived, slipped, "", hold=hold)
 
 
@@ -201,20 +227,59 @@ def _still(world: World, joint: str, hold: np.ndarray) -> None:
             return
 
 
-def deeper(inst: Instance, gripper: Gripper, grasp: np.ndarray, width: float) -> np.ndarray:
+def deeper(
+    inst: Instance,
+    gripper: Gripper,
+    grasp: np.ndarray,
+    widths: tuple[float, float],
+    path: Callable[[np.ndarray], list[tuple[Instance, np.ndarray]]] | None = None,
+) -> np.ndarray:
     """The pinch pose moved in along its approach so that the pads' middle, not their tips'
-    edge, closes on the part: as deep as ``PINCH_DEPTH`` allows without the open hand entering
-    the part (a grasp's origin sits at the fingertips, where a round bar squeezes out)."""
-    points = np.concatenate(
-        [box_surface_grid(b, 0.003) for b in gripper.hand_boxes(min(width, gripper.max_width))]
-    )
+    edge, closes on the part: the deepest of ``PINCH_DEPTHS`` at which the hand enters the object
+    by less than ``PENETRATION`` (a grasp's origin sits at the fingertips, where a round bar
+    squeezes out). ``widths`` is (open, closed): the hand is checked open, at openings while it
+    closes (a pad that passes under a laptop's base would close on the base with the lid), and,
+    given ``path`` (the object and the hand pose along the follow path for a grasp pose), closed
+    along the path (a pad deep under a lid's lip lands on the box's wall as the lid shuts)."""
+    open_to, closed = widths
+    sweep = [_hand_points(gripper, w) for w in np.linspace(open_to, closed, CLOSING_CHECKS)]
     for depth in PINCH_DEPTHS:
         pose = grasp.copy()
         pose[:3, 3] += grasp[:3, 2] * depth
-        world = points @ pose[:3, :3].T + pose[:3, 3]
-        if float(np.min(inst.sdf(world))) > -PENETRATION:
+        checks = [(inst, pose, points) for points in sweep]
+        if path is not None:
+            checks += [(at, hand, sweep[-1]) for at, hand in path(pose)]
+        if all(_clear(at, hand, points) for at, hand, points in checks):
             return pose
     return grasp
+
+
+def _hand_points(gripper: Gripper, width: float) -> np.ndarray:
+    """Points on the surface of every box of the hand opened to ``width`` (gripper frame)."""
+    boxes = gripper.hand_boxes(min(width, gripper.max_width))
+    return np.concatenate([box_surface_grid(b, 0.003) for b in boxes])
+
+
+def _clear(inst: Instance, pose: np.ndarray, points: np.ndarray) -> bool:
+    """The hand's ``points`` at ``pose`` enter ``inst`` by less than ``PENETRATION``."""
+    return float(np.min(inst.sdf(points @ pose[:3, :3].T + pose[:3, 3]))) > -PENETRATION
+
+
+def _path_of(
+    inst: Instance, task: TaskAction, goal: float
+) -> Callable[[np.ndarray], list[tuple[Instance, np.ndarray]]]:
+    """For a grasp pose: the object and the hand (riding the moving link) at ``PATH_CHECKS``
+    joint values from the start towards ``goal`` (within the joint's range)."""
+    lo, hi = inst.joint_limits()[task.joint]
+    q0 = inst.joints[task.joint]
+    qs = np.linspace(q0, min(max(goal, lo), hi), PATH_CHECKS + 1)[1:]
+    moved = [inst.with_joints({task.joint: float(q)}) for q in qs]
+
+    def along(pose: np.ndarray) -> list[tuple[Instance, np.ndarray]]:
+        follower = PathFollower.from_grasp(inst, task.joint, pose, goal, task.sign)
+        return [(at, follower.pose_at(float(q))) for at, q in zip(moved, qs, strict=True)]
+
+    return along
 
 
 def _follow(
@@ -286,6 +351,7 @@ def _finish(
         slipped,
         unstable or world.unstable(),
         detail,
+        world,
     )
 
 
@@ -373,9 +439,10 @@ def _check_config(config: EpisodeConfig) -> None:
         raise ParameterError(f"task must be 'open' or 'close', not {config.task!r}")
 
 
-@lru_cache(maxsize=1)
 def _library() -> Library:
-    """The standard library, compiled once per process (the disk cache makes it quick)."""
-    from grace_dsl.runtime.library import load_library
+    """The standard library, loaded once per process: the runner's copy (its workers warm it),
+    so a process that runs episodes and checks a bench's arguments loads it once, not twice."""
+    from grace_dsl.sim.runner import shared_library
 
-    return load_library()
+    library: Library = shared_library()
+    return library

@@ -12,14 +12,17 @@ where the real ones are held by a counterbalance spring or a friction hinge. The
 the joint where it starts, and the part stays there until the hand moves it. The export holds a
 closed part shut by a friction loss sized to gravity's pull; balanced, that friction would only
 resist the hand (an oven door then opened past half its range in 65% of episodes, not 100%), so
-the world gives every object joint the export's base friction instead.
+the world gives the joint the hand drives the export's base friction instead. Told which joint
+the hand drives, the world balances only the part that joint moves (and what hangs on it): the
+other parts keep their weight and the export's holding friction, so a toilet seat stays down on
+its stop while the hand lifts the lid hinged on it (weightless, it rose with the lid).
 """
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -36,6 +39,9 @@ FINGER_SPEED = 0.1  # m/s per finger: panda.urdf's finger joint velocity limit i
 LINEAR_DAMPING = 70.0  # N s/m on the hand's free joint: about critical for 1500 N/m, 0.76 kg
 ANGULAR_DAMPING = 0.8  # N m s/rad
 ANGULAR_ARMATURE = 0.003  # kg m^2 added to the hand's rotation (a stiffer spring stays stable)
+#: the object's bodies collide with each other too (the export's own exclusions kept): off by
+#: default; docs/benchmarks.md has the measured difference
+SELF_COLLISION = False
 
 
 @dataclass
@@ -49,6 +55,11 @@ class World:
     hand_body: int
     impedance: Impedance
     finger_goal: float = 0.0
+    #: every ``trace_every`` steps (0: never), the time, the joint positions and every body's
+    #: position and (w, x, y, z) quaternion: what a replay of the episode draws
+    trace_every: int = 0
+    trace: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    _steps: int = 0
     _target: np.ndarray | None = None
     _target_quat: np.ndarray | None = None
 
@@ -59,23 +70,31 @@ class World:
         hand_pose: np.ndarray,
         impedance: Impedance | None = None,
         balanced: bool = True,
+        driven: str | None = None,
+        self_collision: bool | None = None,
     ) -> World:
         """The world of ``inst`` (joints at its values) with the hand at ``hand_pose``;
-        ``balanced``: the object's parts do not fall under gravity (see the module docstring)."""
+        ``balanced``: the object's parts do not fall under gravity (see the module docstring);
+        ``driven``: the concept joint the hand moves (None: every joint); in a balanced world
+        only its part is balanced and loses the export's holding friction; ``self_collision``
+        (default ``SELF_COLLISION``): the object's own bodies collide with each other."""
         exported = build_model(inst)
         root = ET.fromstring(write_mjcf(exported))
         for key in root.findall("keyframe"):  # its qpos no longer fits once the hand is in
             root.remove(key)
         if balanced:  # a real door or lid is counterbalanced or held by a friction hinge
-            for body in root.iter("body"):
+            free = {j.name for j in exported.joints if driven in (None, j.source)}
+            for body in _moved_by(root, free):
                 body.set("gravcomp", "1")
             for joint in root.iter("joint"):  # no gravity to hold against: a hinge's own friction
-                joint.set("frictionloss", str(FRICTION))
+                if joint.get("name") in free:
+                    joint.set("frictionloss", str(FRICTION))
         for geom in root.iter("geom"):
             if geom.get("contype") == "0" and geom.get("conaffinity") == "0":
                 continue  # a visual geom (the export's whole pieces): it collides with nothing
             geom.set("contype", str(OBJECT_GROUP))
-            geom.set("conaffinity", str(HAND_GROUP))
+            among = SELF_COLLISION if self_collision is None else self_collision
+            geom.set("conaffinity", str(HAND_GROUP | (OBJECT_GROUP if among else 0)))
         spec, assets, body, actuators = build_hand(gripper, hand_pose, GRASP_FORCE)
         option = ET.Element("option", timestep=str(TIMESTEP), integrator="implicitfast")
         option.set("gravity", "0 0 -9.81")
@@ -178,3 +197,15 @@ class World:
         w = self.impedance.wrench_at(pos, d.xmat[b].reshape(3, 3), target[:3, 3], self._target_quat)
         mujoco.mj_applyFT(self.model, d, w[:3], w[3:], pos, b, d.qfrc_applied)
         mujoco.mj_step(self.model, d)
+        if self.trace_every and self._steps % self.trace_every == 0:
+            self.trace.append((float(d.time), d.qpos.copy(), d.xpos.copy(), d.xquat.copy()))
+        self._steps += 1
+
+
+def _moved_by(root: ET.Element, joints: set[str]) -> list[ET.Element]:
+    """Every body of the MJCF ``root`` that one of ``joints`` moves (its child and below)."""
+    out: list[ET.Element] = []
+    for body in root.iter("body"):
+        if any(j.get("name") in joints for j in body.findall("joint")):
+            out.extend(body.iter("body"))
+    return list({id(b): b for b in out}.values())
