@@ -148,6 +148,7 @@ def demo_arm(path: Path) -> None:
     planned trajectory in MuJoCo (``sim.arm_episode``); its record printed and written."""
     import json
 
+    from grace_dsl.cli.files import atomic_write
     from grace_dsl.sim.arm_episode import demo_arm_episode
 
     record = demo_arm_episode()
@@ -156,8 +157,7 @@ def demo_arm(path: Path) -> None:
         f"\narm episode (the Panda on a base, {record.config.concept} {record.config.task}, "
         f"seed {record.seed}): {verdict}; joint {record.q_initial:.3f} -> {record.q_final:.3f}"
     )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(record.to_json(), indent=1))
+    atomic_write(path, json.dumps(record.to_json(), indent=1))
 
 
 def demo_replay(config: Any, seed: int, output: Path) -> dict[str, Path]:
