@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from grace_dsl.compiler import variants
 from grace_dsl.compiler.expand import VARIANT_SEP, expand
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
@@ -135,6 +136,7 @@ def resolve(
     diags += _import_cycles(prog)
     diags += _collect_concepts(prog)
     diags += _visibility(prog)
+    diags += _variant_pass(prog)
     for entry in prog.concepts.values():
         diags += _check_members(entry, prog)
     diags += _part_cycles(prog)
@@ -411,6 +413,23 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     )
     diags += _check_link_tree(c, links, dropped)
     return _once_per_span(diags)
+
+
+def _variant_pass(prog: Program) -> list[Diagnostic]:
+    """Reads, pass-through arguments and grasps of variant parts, made concrete (variants.py)."""
+
+    def concept(name: str) -> ast.Concept | None:
+        entry = prog.concepts.get(name)
+        return entry.decl if entry is not None else None
+
+    scope = variants.Scope(concept)
+    diags: list[Diagnostic] = []
+    for name, entry in list(prog.concepts.items()):
+        if variants.uses_variants(entry.decl, scope):
+            decl, more = variants.rewrite_concept(entry.decl, scope)
+            prog.concepts[name] = ConceptEntry(decl, entry.file)
+            diags += more
+    return diags
 
 
 def _once_per_span(diags: list[Diagnostic]) -> list[Diagnostic]:

@@ -299,7 +299,10 @@ def _variant_segments(d: ast.Part) -> list[Segment]:
     arms: list[Segment] = []
     for i, v in enumerate(d.variants):
         last = i == len(d.variants) - 1
-        arms.append([f"{quote(v.value)} => ", ast.Call(v.concept, v.args), "" if last else ","])
+        mount: Segment = [" at ", v.at] if v.at is not None else []
+        arms.append(
+            [f"{quote(v.value)} => ", ast.Call(v.concept, v.args), *mount, "" if last else ","]
+        )
     return [head, *arms, ["}"], *_placement(d.at)]
 
 

@@ -308,13 +308,15 @@ class _Builder(Transformer):
         return self._expr(ast.Index(obj, index, span), obj, index)
 
     def variant(self, c: list[Any]) -> ast.Variant:
-        value, concept, args = c
+        value, concept, args, *rest = c
+        at = rest[0].value if rest and isinstance(rest[0], _Clause) else None
         return ast.Variant(
             _string_value(value),
             concept.value,
             tuple(args or ()),
-            self._span(value, concept),
+            self._span(value, at or concept),
             _tok_span(self.path, concept),
+            at,
         )
 
     def variant_part_decl(self, c: list[Any]) -> ast.Part:
