@@ -446,6 +446,10 @@ class _Expander:
                 num = ast.Number(str(abs(k)), None, e.span)
                 return num if k >= 0 else ast.Unary("-", num, e.span)
             return e
+        if isinstance(e, ast.Index) and isinstance(e.index, ast.String):
+            obj = self._x(e.obj, env)  # `handle["bar"]`: option "bar" of variant part `handle`
+            if isinstance(obj, ast.Name):
+                return ast.Name(f"{obj.id}{VARIANT_SEP}{e.index.value}", e.span)
         if isinstance(e, ast.Index):
             obj = self._x(e.obj, env)
             at = const_int(self._x(e.index, env), env)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from grace_dsl.compiler import variants
-from grace_dsl.compiler.expand import VARIANT_SEP, expand
+from grace_dsl.compiler.expand import VARIANT_SEP, expand, split_indexed
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import KEYWORDS, parse
@@ -328,6 +328,7 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     c, file = entry.decl, entry.file
     diags: list[Diagnostic] = []
     seen: dict[str, ast.Span] = {}
+    seen_base: set[tuple[str, ast.Span]] = set()
     dropped = prog.dropped(file)
     for m in flat_members(c):
         if c.kind == "primitive" and not isinstance(m, (ast.Param, ast.Require)):
@@ -344,6 +345,12 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
+        source = _source_name(m)
+        if source == BASE_LINK and isinstance(m, (ast.Part, ast.Link)):
+            if (source, span) not in seen_base:  # the copies and options share one source
+                seen_base.add((source, span))
+                diags.append(_base_clash(m, span))
+            continue
         if name in KEYWORDS:  # only reachable for names the parser let through
             diags.append(
                 error(
@@ -430,6 +437,29 @@ def _variant_pass(prog: Program) -> list[Diagnostic]:
             prog.concepts[name] = ConceptEntry(decl, entry.file)
             diags += more
     return diags
+
+
+def _source_name(m: ast.Member_) -> str:
+    """The name as written: ``base`` for ``base[2]`` (a loop's copy) or ``base@legs`` (an
+    option of a variant part), whose unrolled names escape the checks on plain names."""
+    if isinstance(m, ast.Part) and m.variant is not None:
+        name = m.variant[0]
+    else:
+        name = m.name
+    split = split_indexed(name)
+    return split[0] if split is not None else name
+
+
+def _base_clash(m: ast.Part | ast.Link, span: ast.Span) -> Diagnostic:
+    """A part or link named ``base``: the root link of every concept has that name, so joints
+    (``revolute(base -> door)``) and the part's own links (``base.frame``) would be ambiguous."""
+    kind = "part" if isinstance(m, ast.Part) else "link"
+    return error(
+        "E130",
+        f"a {kind} cannot be named `base`: `base` is the root link of every concept",
+        span,
+        "rename it for what it is, e.g. `plinth`, `stand` or `carcass`",
+    )
 
 
 def _once_per_span(diags: list[Diagnostic]) -> list[Diagnostic]:

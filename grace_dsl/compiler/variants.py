@@ -13,7 +13,8 @@ by its plain name:
   of the drawer's variant ``handle`` that has it unbound (``handle@bar.length``); none is E116.
 - **grasps**: an action's ``using drawer.handle.pull, drawer.handle.pinch`` lists the grasps of
   every option of the (nested) variant part; together they are the action's *grasp family* for
-  that part.  Each option keeps the ones it has and must have at least one (E127).
+  that part.  Each option keeps the ones it has and must have at least one, unless the action
+  also lists a grasp outside the variant part (a door's edge), which serves every option (E127).
 
 Why a pass of its own: expand sees one file, and these rewrites need the option concepts'
 parameters and grasps, which may live in other files.
@@ -119,17 +120,16 @@ class _Rewriter:
     # ---- reads ----------------------------------------------------------------------------------
     def expr(self, e: ast.Expr, facts: tuple[tuple[str, int | str], ...]) -> ast.Expr:
         """``e`` with ``handle.x`` of a variant part made the chosen option's ``x``."""
-        if isinstance(e, ast.Member) and isinstance(e.obj, ast.Name):
-            if e.obj.id in self.variants:
-                return self.read(e, facts)
+        if isinstance(e, ast.Member) and isinstance(e.obj, ast.Name) and e.obj.id in self.variants:
+            return self.read(e, facts)
         if isinstance(e, ast.IfExpr):
             cond = self.expr(e.cond, facts)
-            then = self.expr(e.then, facts + facts_of(e.cond, True))
-            orelse = self.expr(e.orelse, facts + facts_of(e.cond, False))
+            then = self.expr(e.then, facts + _facts(e.cond, True))
+            orelse = self.expr(e.orelse, facts + _facts(e.cond, False))
             return replace(e, cond=cond, then=then, orelse=orelse)
         if isinstance(e, ast.Binary) and e.op in ("and", "or"):
             left = self.expr(e.left, facts)
-            right = self.expr(e.right, facts + facts_of(e.left, e.op == "and"))
+            right = self.expr(e.right, facts + _facts(e.left, e.op == "and"))
             return replace(e, left=left, right=right)
         kids = ast._children(e)
         new = [self.expr(k, facts) for k in kids]
@@ -142,7 +142,10 @@ class _Rewriter:
         name = e.obj.id
         choice, options = self.variants[name]
         chosen = {v for p, v in facts if p == choice}
-        possible = [(o, alt) for o, alt in options if not chosen or o in chosen]
+        ruled_out = {v for p, v in facts if p == "!" + choice}
+        possible = [
+            (o, alt) for o, alt in options if (not chosen or o in chosen) and o not in ruled_out
+        ]
         having = []
         for option, alt in possible:
             part = self.parts.get(alt)
@@ -154,8 +157,7 @@ class _Rewriter:
             else:
                 self.err(
                     "E129",
-                    f'option "{option}" of part `{name}` ({sub.name}) has no parameter '
-                    f"`{e.field}`",
+                    f'option "{option}" of part `{name}` ({sub.name}) has no parameter `{e.field}`',
                     e.span,
                     _read_hint(choice, name, e.field, sub, [o for o, _ in options if o != option]),
                 )
@@ -200,10 +202,12 @@ class _Rewriter:
         """The action's grasps, each variant option keeping the ones it has (E127: none)."""
         kept: list[str] = []
         families: dict[str, dict[str, list[str]]] = {}  # variant path -> option -> grasps
+        others = False  # a grasp outside every variant part: the action always has one
         for u in a.using:
             expanded = _expand_grasp(self.c, u, self.scope)
             if expanded is None:  # no variant on the way: resolve checks it
                 kept.append(u)
+                others = True
                 continue
             for name, options in expanded:
                 for path, option in options:
@@ -214,7 +218,7 @@ class _Rewriter:
                         families[path][option].append(name)
         for path, by_option in families.items():
             for option, grasps in by_option.items():
-                if grasps:
+                if grasps or others:
                     continue
                 alt = f"{path}{VARIANT_SEP}{option}"
                 sub = _part_concept(self.c, alt, self.scope)
@@ -227,18 +231,46 @@ class _Rewriter:
                     + f" has none of the grasps action `{a.name}` uses: "
                     + ", ".join(f"`{w}`" for w in wanted),
                     a.span,
-                    (f"{sub.name} has " + (", ".join(f"`{x}`" for x in has) or "no grasps")
-                     + "; list one of them in `using` too")
+                    (
+                        f"{sub.name} has "
+                        + (", ".join(f"`{x}`" for x in has) or "no grasps")
+                        + "; list one of them in `using` too"
+                    )
                     if sub is not None
                     else None,
                 )
         return tuple(dict.fromkeys(kept))
 
 
+def _facts(cond: ast.Expr, holds: bool) -> tuple[tuple[str, int | str], ...]:
+    """What ``cond`` being ``holds`` says: expand's facts (``kind == "bar"``) and the options it
+    rules out, as ``("!kind", "bar")`` (the ``else`` of ``if kind == "bar"``)."""
+    out = facts_of(cond, holds)
+    if isinstance(cond, ast.Unary) and cond.op == "not":
+        return out + _ruled_out(cond.operand, not holds)
+    return out + _ruled_out(cond, holds)
+
+
+def _ruled_out(cond: ast.Expr, holds: bool) -> tuple[tuple[str, int | str], ...]:
+    if isinstance(cond, ast.Binary) and cond.op in ("and", "or"):
+        if (cond.op == "and") == holds:
+            return _ruled_out(cond.left, holds) + _ruled_out(cond.right, holds)
+        return ()
+    if not (isinstance(cond, ast.Binary) and cond.op in ("==", "!=")):
+        return ()
+    left, right = cond.left, cond.right
+    if isinstance(right, ast.Name):
+        left, right = right, left
+    if not (isinstance(left, ast.Name) and isinstance(right, ast.String)):
+        return ()
+    return (("!" + left.id, right.value),) if (cond.op == "==") != holds else ()
+
+
 def _read_hint(choice: str, name: str, field: str, sub: ast.Concept, others: list[str]) -> str:
     guard = f'`if {choice} == "{others[0]}" then {name}.{field} else ...`' if others else ""
     has = ", ".join(f"`{p}`" for p in sorted(_params(sub))) or "no parameters"
-    return f"{sub.name} has {has}" + (f"; read it only where another option is chosen: {guard}" if guard else "")
+    where = f"; read it only where another option is chosen: {guard}" if guard else ""
+    return f"{sub.name} has {has}{where}"
 
 
 def _bind(target: ast.Concept, dotted: str, scope: Scope) -> tuple[list[str], str | None]:
@@ -247,6 +279,17 @@ def _bind(target: ast.Concept, dotted: str, scope: Scope) -> tuple[list[str], st
     head, _, rest = dotted.partition(".")
     variants: Variants = dict(target.variants)
     parts = _parts(target)
+    base, sep, _ = head.partition(VARIANT_SEP)
+    if sep and base in variants:  # `handle["bar"].length`: that option only
+        part = parts.get(head)
+        sub = scope.concept(part.concept) if part is not None else None
+        if part is None or sub is None:
+            return [], base
+        if "." in rest:
+            inner, _ = _bind(sub, rest, scope)
+            return [f"{head}.{n}" for n in inner], base
+        free = rest in _params(sub) and all(x.name != rest for x in part.args)
+        return ([dotted] if free else []), base
     if head in variants:
         names: list[str] = []
         for _, alt in variants[head][1]:

@@ -9,6 +9,7 @@ tree is unchanged, that formatting is idempotent and that every comment survives
 
 from __future__ import annotations
 
+import re
 import sys
 import threading
 from collections.abc import Sequence
@@ -144,7 +145,12 @@ def _unary_prefix(e: ast.Unary) -> str:
 
 
 def _arg_prefix(name: str | None) -> str:
-    return f"{name}: " if name else ""
+    return f"{arg_name(name)}: " if name else ""
+
+
+def arg_name(name: str) -> str:
+    """``handle@bar.length`` (one option's parameter) as written: ``handle["bar"].length``."""
+    return re.sub(r"@([^.]+)", lambda m: f'["{m.group(1)}"]', name)
 
 
 # ---- expressions over several lines ------------------------------------------------------------

@@ -701,7 +701,8 @@ class _Builder(Transformer):
             raise _BadNumber(
                 error(
                     "E002",
-                    "an argument's name must be a name, such as `length` or `handle.length`",
+                    "an argument's name must be a name, such as `length`, `handle.length` or "
+                    '`handle["bar"].length`',
                     target.span,
                     "write `name: value`",
                 )
@@ -712,7 +713,14 @@ class _Builder(Transformer):
 def _dotted(e: Any) -> str | None:
     """``a.b.c`` for a name or a chain of member accesses on a name; None for anything else."""
     fields: list[str] = []
-    while isinstance(e, ast.Member):
+    while isinstance(e, (ast.Member, ast.Index)):
+        if isinstance(e, ast.Index):  # `handle["bar"].length`: one option of a variant part
+            if not (isinstance(e.index, ast.String) and fields):
+                return None
+            inner = _dotted(e.obj)
+            if inner is None:
+                return None
+            return ".".join([f"{inner}@{e.index.value}", *reversed(fields)])
         fields.append(e.field)
         e = e.obj
     if not isinstance(e, ast.Name):
