@@ -69,6 +69,7 @@ from grace_dsl.runtime.errors import (
 from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.masks import presence
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec
@@ -356,7 +357,7 @@ def verify_concept(
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
         attempts += 1
-        values = draw_params(concept, rng, specs)
+        values = draw_valid(concept, rng, specs, draw_params, ranges)
         pose = random_pose(rng)
         try:
             inst = concept.instantiate(pose=pose, ranges=ranges, params=values)
