@@ -363,7 +363,12 @@ def _code_lines(d: Decl, indent: int) -> list[str]:
         lines = _layout_parts(segs[0], indent)
         for seg in segs[1 : 1 + arms]:
             lines += _layout_parts(seg, indent + INDENT)
-        lines.append(" " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :]))
+        close = " " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :])
+        if len(close) <= WIDTH:
+            return [*lines, close]
+        lines.append(" " * indent + "}")  # a long placement continues below the brace
+        for seg in segs[2 + arms :]:
+            lines += _layout_parts(seg, indent + INDENT)
         return lines
     lines = _layout_parts(segs[0], indent)
     for seg in segs[1:]:
