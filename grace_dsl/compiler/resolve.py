@@ -12,6 +12,7 @@ import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from grace_dsl.compiler import variants
 from grace_dsl.compiler.expand import VARIANT_SEP, expand, split_indexed
@@ -439,13 +440,10 @@ def _variant_pass(prog: Program) -> list[Diagnostic]:
     return diags
 
 
-def _source_name(m: ast.Member_) -> str:
+def _source_name(m: Any) -> str:
     """The name as written: ``base`` for ``base[2]`` (a loop's copy) or ``base@legs`` (an
     option of a variant part), whose unrolled names escape the checks on plain names."""
-    if isinstance(m, ast.Part) and m.variant is not None:
-        name = m.variant[0]
-    else:
-        name = m.name
+    name = m.variant[0] if isinstance(m, ast.Part) and m.variant is not None else m.name
     split = split_indexed(name)
     return split[0] if split is not None else name
 

@@ -56,9 +56,7 @@ def draw_valid(
         failed = _failed(concept, values, ranges)
         if failed is None or not failed:
             break
-        names = {
-            str(rng.choice(depends[i])) for i in failed if i < len(depends) and depends[i]
-        }
+        names = {str(rng.choice(depends[i])) for i in failed if i < len(depends) and depends[i]}
         if not names:
             break
         values.update(draw(concept, rng, [by_name[n] for n in sorted(names)]))

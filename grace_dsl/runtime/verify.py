@@ -60,6 +60,7 @@ import numpy as np
 
 from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime.concept import ParamSpec
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import (
     EvaluationError,
     GraceError,
@@ -69,7 +70,6 @@ from grace_dsl.runtime.errors import (
 from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.masks import presence
-from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.shapes import ShapeError, ShapeTree, parameter_text
 from grace_dsl.runtime.specs import ActionSpec

@@ -65,7 +65,7 @@ def test_the_front_compiles_without_diagnostics(tmp_path: Path) -> None:
     ("change", "code", "where"),
     [
         # an unguarded read of a parameter only the bar has
-        ("let reach = if kind == \"bar\"", "let reach = if 1 == 1", ("E129", "handle.radius")),
+        ('let reach = if kind == "bar"', "let reach = if 1 == 1", ("E129", "handle.radius")),
         # the else of `kind == "bar"` rules the bar out: the knob's stem is readable there
         ("else handle.radius", "else handle.stem", None),
         # a pass-through no option takes
