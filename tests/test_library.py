@@ -394,3 +394,36 @@ def test_library_table_shows_modes_senses_and_units(lib: eac.Library) -> None:
     assert "`handle.throw` (rad)" in rows["Safe"]
     assert "cabinet (`cabinets.eac`)" in rows["Safe"]
     assert "Cuboid" not in rows  # primitives are documented in primitives.md
+
+
+def test_repaired_draws_stay_in_range_and_follow_the_seed(lib: eac.Library) -> None:
+    """The verifier's repair changes values only to other values of their ranges, is a function
+    of the seed, and turns StorageFurniture's mostly invalid uniform draws into valid ones."""
+    c = lib["StorageFurniture"]
+    first = [draw_valid(c, np.random.default_rng(s), c.params, draw_params) for s in range(12)]
+    again = [draw_valid(c, np.random.default_rng(s), c.params, draw_params) for s in range(12)]
+    assert first == again
+    specs = {p.name: p for p in c.params}
+    valid = 0
+    for values in first:
+        for name, v in values.items():
+            p = specs[name]
+            if p.kind in ("num", "vec"):
+                lo, hi = np.atleast_1d(p.lo), np.atleast_1d(p.hi)
+                assert np.all(np.atleast_1d(v) >= lo - 1e-12) and np.all(
+                    np.atleast_1d(v) <= hi + 1e-12
+                )
+        try:
+            c.instantiate(**values)
+            valid += 1
+        except eac.RequirementError:
+            pass
+    raw = 0
+    rng = np.random.default_rng(0)
+    for _ in range(12):
+        try:
+            c.instantiate(**draw_params(c, rng))
+            raw += 1
+        except eac.RequirementError:
+            pass
+    assert valid >= 10 and valid > raw, (valid, raw)
