@@ -57,6 +57,7 @@ def _diags(tmp_path: Path, text: str) -> list[Any]:
     return [d for d in diags if d.severity == "error"]
 
 
+@pytest.mark.slow
 def test_the_front_compiles_without_diagnostics(tmp_path: Path) -> None:
     assert not has_errors(_diags(tmp_path, FRONT))
 
