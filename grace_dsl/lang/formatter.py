@@ -9,7 +9,6 @@ tree is unchanged, that formatting is idempotent and that every comment survives
 
 from __future__ import annotations
 
-import re
 import sys
 import threading
 from collections.abc import Sequence
@@ -145,12 +144,7 @@ def _unary_prefix(e: ast.Unary) -> str:
 
 
 def _arg_prefix(name: str | None) -> str:
-    return f"{arg_name(name)}: " if name else ""
-
-
-def arg_name(name: str) -> str:
-    """``handle@bar.length`` (one option's parameter) as written: ``handle["bar"].length``."""
-    return re.sub(r"@([^.]+)", lambda m: f'["{m.group(1)}"]', name)
+    return f"{name}: " if name else ""
 
 
 # ---- expressions over several lines ------------------------------------------------------------
@@ -305,10 +299,7 @@ def _variant_segments(d: ast.Part) -> list[Segment]:
     arms: list[Segment] = []
     for i, v in enumerate(d.variants):
         last = i == len(d.variants) - 1
-        mount: Segment = [" at ", v.at] if v.at is not None else []
-        arms.append(
-            [f"{quote(v.value)} => ", ast.Call(v.concept, v.args), *mount, "" if last else ","]
-        )
+        arms.append([f"{quote(v.value)} => ", ast.Call(v.concept, v.args), "" if last else ","])
     return [head, *arms, ["}"], *_placement(d.at)]
 
 
@@ -363,12 +354,7 @@ def _code_lines(d: Decl, indent: int) -> list[str]:
         lines = _layout_parts(segs[0], indent)
         for seg in segs[1 : 1 + arms]:
             lines += _layout_parts(seg, indent + INDENT)
-        close = " " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :])
-        if len(close) <= WIDTH:
-            return [*lines, close]
-        lines.append(" " * indent + "}")  # a long placement continues below the brace
-        for seg in segs[2 + arms :]:
-            lines += _layout_parts(seg, indent + INDENT)
+        lines.append(" " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :]))
         return lines
     lines = _layout_parts(segs[0], indent)
     for seg in segs[1:]:

@@ -308,15 +308,13 @@ class _Builder(Transformer):
         return self._expr(ast.Index(obj, index, span), obj, index)
 
     def variant(self, c: list[Any]) -> ast.Variant:
-        value, concept, args, *rest = c
-        at = rest[0].value if rest and isinstance(rest[0], _Clause) else None
+        value, concept, args = c
         return ast.Variant(
             _string_value(value),
             concept.value,
             tuple(args or ()),
-            self._span(value, at or concept),
+            self._span(value, concept),
             _tok_span(self.path, concept),
-            at,
         )
 
     def variant_part_decl(self, c: list[Any]) -> ast.Part:
@@ -701,8 +699,7 @@ class _Builder(Transformer):
             raise _BadNumber(
                 error(
                     "E002",
-                    "an argument's name must be a name, such as `length`, `handle.length` or "
-                    '`handle["bar"].length`',
+                    "an argument's name must be a name, such as `length` or `handle.length`",
                     target.span,
                     "write `name: value`",
                 )
@@ -713,14 +710,7 @@ class _Builder(Transformer):
 def _dotted(e: Any) -> str | None:
     """``a.b.c`` for a name or a chain of member accesses on a name; None for anything else."""
     fields: list[str] = []
-    while isinstance(e, (ast.Member, ast.Index)):
-        if isinstance(e, ast.Index):  # `handle["bar"].length`: one option of a variant part
-            if not (isinstance(e.index, ast.String) and fields):
-                return None
-            inner = _dotted(e.obj)
-            if inner is None:
-                return None
-            return ".".join([f"{inner}@{e.index.value}", *reversed(fields)])
+    while isinstance(e, ast.Member):
         fields.append(e.field)
         e = e.obj
     if not isinstance(e, ast.Name):
