@@ -39,23 +39,12 @@ from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.report import record_from_json
 from grace_dsl.sim.runner import plan_episodes, run_episodes
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_sim import CATEGORIES  # noqa: E402  (the flying Panda's twelve categories)
+
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "sim_hands.json"
 PANDA_RUN = ROOT / "bench" / "results" / "sim.json"
-CATEGORIES = (
-    "CabinetDrawer",
-    "Drawer",
-    "DishDrawer",
-    "HingedCabinet",
-    "MirrorCabinet",
-    "DoorLeaf",
-    "Microwave",
-    "Oven",
-    "Dishwasher",
-    "Refrigerator",
-    "Laptop",
-    "LidBox",
-)  # bench/bench_sim.py's
 SMALL = ("CabinetDrawer", "HingedCabinet", "Microwave")
 SETUPS = {
     "topdown": EpisodeConfig("", hand="topdown"),

@@ -50,19 +50,15 @@ from grace_dsl.sim.episode import (
     SLIP_TIME,
     Z_UP,
     Outcome,
-    _camera,
     _early,
-    _failure,
-    _jsonable,
     _library,
     deeper,
+    outcome_record,
 )
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
     TaskAction,
     draw_episode,
-    lenient_success,
-    strict_success,
     task_action,
 )
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
@@ -110,28 +106,7 @@ def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
     except GraceError as exc:
         return _early(config, seed, task, "ik_failure", str(exc), started, draw, inst)
     outcome = execute_plan(inst, task, plan, config.max_seconds)
-    lo, hi = inst.joint_limits()[task.joint]
-    strict = strict_success(config.task, outcome.q_final, lo, hi)
-    lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
-    reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
-    option = plan.choice.option
-    return EpisodeRecord(
-        config=config,
-        seed=seed,
-        joint=task.joint,
-        q_range=(lo, hi),
-        q_initial=draw.q_initial,
-        q_final=outcome.q_final,
-        lenient=lenient,
-        strict=strict,
-        reason=reason,
-        detail=detail,
-        params=_jsonable(draw.params),
-        camera=_camera(draw, inst),
-        option=f"{option.grasp} ({option.mode})",
-        sim_seconds=outcome.sim_seconds,
-        wall_seconds=time.perf_counter() - started,
-    )
+    return outcome_record(config, seed, task, draw, inst, outcome, plan.choice.option, started)
 
 
 def robot_base(robot: Robot, inst: Instance, action: str) -> np.ndarray:

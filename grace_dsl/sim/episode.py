@@ -102,11 +102,27 @@ def episode_and_world(
         why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons) or "no option"
         return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst), None
     outcome = execute(inst, task, usable[0], gripper, config.max_seconds, trace_every)
+    record = outcome_record(config, seed, task, draw, inst, outcome, usable[0], started)
+    return record, outcome.world
+
+
+def outcome_record(
+    config: EpisodeConfig,
+    seed: int,
+    task: TaskAction,
+    draw: Draw,
+    inst: Instance,
+    outcome: Outcome,
+    option: Option,
+    started: float,
+) -> EpisodeRecord:
+    """The record of an episode that executed ``option`` (the flying hand's or the arm's):
+    both success criteria on the final joint value, and the failure's reason when strict fails."""
     lo, hi = inst.joint_limits()[task.joint]
     strict = strict_success(config.task, outcome.q_final, lo, hi)
     lenient = lenient_success(config.task, draw.q_initial, outcome.q_final)
     reason, detail = ("", outcome.detail) if strict else _failure(config, draw, outcome)
-    record = EpisodeRecord(
+    return EpisodeRecord(
         config=config,
         seed=seed,
         joint=task.joint,
@@ -119,11 +135,10 @@ def episode_and_world(
         detail=detail,
         params=_jsonable(draw.params),
         camera=_camera(draw, inst),
-        option=f"{usable[0].grasp} ({usable[0].mode})",
+        option=f"{option.grasp} ({option.mode})",
         sim_seconds=outcome.sim_seconds,
         wall_seconds=time.perf_counter() - started,
     )
-    return record, outcome.world
 
 
 @dataclass(frozen=True)
