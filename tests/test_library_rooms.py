@@ -62,12 +62,13 @@ JOINTS: dict[str, list[tuple[str, str, str, Callable[[Mapping[str, Any]], Axis]]
     ],
     "SashWindow": [("open", "close", "slide", lambda p: _pri((0, 1, 0)))],
     "TiltTurnWindow": [
-        # the top tips into the room about the bottom edge of the opening
+        # the top tips into the room about the bottom edge of the opening, level with the
+        # frame's front (half the sash's thickness in front of its back)
         (
             "tilt_open",
             "tilt_close",
             "hinge",
-            lambda p: _rev((1, 0, 0), (0, -(p["size"][1] - 2 * p["frame"]) / 2, 0)),
+            lambda p: _rev((1, 0, 0), (0, -(p["size"][1] - 2 * p["frame"]) / 2, p["sash"] / 2)),
         ),
         # the lever's end swings from down to left: clockwise seen from the room
         ("unlock", "lock", "turn", lambda p: _rev((0, 0, -1), (_tilt_turn_hub(p), 0, 0))),

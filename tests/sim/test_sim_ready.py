@@ -28,17 +28,12 @@ from grace_dsl.sim.model import Settle, instance_model, settle, upright, zup_pos
 PENETRATION = 1e-3  # m
 IMPACT = 5e-3  # m, during a fall in a drawn state
 #: concepts whose joint ranges allow states with parts inside each other (seed 13's draws, one
-#: generator per concept seeded by (13, crc32(name)))
+#: generator per concept seeded by (13, crc32(name))); each joint alone stays clear over its whole
+#: range (``test_each_joint_alone_stays_clear``), so these are joints whose limits depend on each
+#: other, which the language cannot say
 START_OVERLAPS = {
-    "CasementWindow": "the leaf turned about its hinge sweeps into the frame (2.6 mm)",
-    "KeyRow": "a pressed key meets the base (1.2 mm)",
-    "Microwave": "the pressed door button sinks into the solid body by its stroke (2.0 mm)",
-    "PedalBin": "the step plate meets the base (2.0 mm)",
-    "RockerSwitch": "the tilted paddle meets the base (2.9 mm)",
-    "StoveKnob": "the knob pushed in sinks its plunger into the solid base by the push (2.5 mm)",
-    "RollerDoor": "the rigid curtain rises into the housing box (8.7 mm at rise 1.67 m)",
-    "TiltTurnWindow": "the turned leaf sweeps into the frame (1.9 mm)",
-    "Toilet": "the cover opened 86 degrees passes into the tank (116 mm)",
+    "Toilet": "the lid is hinged on the seat: seat and lid opened together past about 100 degrees "
+    "put the lid into the cistern",
 }
 SLIDE, TURN = 1e-3, math.radians(1.0)
 
@@ -144,3 +139,38 @@ def test_every_library_concept_settles_without_overlap_or_drift(lib) -> None:
         if problems and not (name in START_OVERLAPS and problems[0].startswith("drawn: start")):
             failures[name] = problems
     assert failures == {}
+
+
+def _start_overlap(inst: eac.Instance) -> float:
+    model, data = instance_model(upright(inst))
+    return settle(model, data, 0.0).initial
+
+
+#: the concepts whose parts met at a joint's far end before their geometry was fixed
+FIXED_OVERLAPS = (
+    "CasementWindow",
+    "KeyRow",
+    "Microwave",
+    "PedalBin",
+    "RockerSwitch",
+    "RollerDoor",
+    "StoveKnob",
+    "TiltTurnWindow",
+    "Toilet",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", FIXED_OVERLAPS)
+def test_each_joint_alone_stays_clear(lib, name: str) -> None:
+    """At its defaults with one joint at its far end (a continuous one half a turn round) and
+    the others closed, no two of the concept's bodies overlap by 1 mm. What this fixed: a key,
+    a button and a knob's plunger pressed into solid panels, a rocker's paddle and a pedal's
+    plate tipped into their bodies, window leaves swung into their frames, a roller door's
+    curtain risen into its drum, a toilet seat opened into the cistern."""
+    inst = lib[name].instantiate()
+    depths = {
+        joint: _start_overlap(inst.with_joints({joint: min(hi, math.pi)}))
+        for joint, (_, hi) in inst.joint_limits().items()
+    }
+    assert {j: round(d * 1000, 1) for j, d in depths.items() if d >= PENETRATION} == {}
