@@ -55,7 +55,7 @@ TARGETS = {
     "ms_per_part": 100.0,
 }
 HELDOUT_SEED = 1_000_003
-MOVE = 0.05  # of a parameter's range: the change ``constrained`` looks for in a view
+FOLLOW = {"length": 0.3, "angle": 0.01}  # |d distance / d parameter| of a point that follows
 MIN_MOVED = 5  # points
 EXAMPLE = "CabinetDrawer"  # the concept whose first view's fits are drawn
 
@@ -97,9 +97,10 @@ def near_start(concept: eac.Concept, view: ViewSample, rng: np.random.Generator)
 
 
 def constrained(concept: eac.Concept, view: ViewSample) -> set[str]:
-    """The parameters this view constrains: moving one by ``MOVE`` of its range moves at least
-    ``MIN_MOVED`` of the view's points, or of the free-space points within 10 mm of the true
-    surface (the outline), by 1 mm or more. The others no fit can read off this cloud: a
+    """The parameters this view constrains: at least ``MIN_MOVED`` of the view's points, or of
+    the free-space points within 10 mm of the true surface (the outline), follow the parameter
+    (their distance changes by ``FOLLOW`` per unit of it: a third of a millimetre per
+    millimetre, a centimetre per radian). The others no fit can read off this cloud: a
     drawer's travel (it only bounds the slide), a handle that got one or two of the 1024 points
     of a whole cabinet, the depth of a box behind its closed front."""
     from grace_dsl.perception.fit import Fitter, free_space
@@ -116,9 +117,10 @@ def constrained(concept: eac.Concept, view: ViewSample) -> set[str]:
     d, g = np.asarray(d).reshape(-1), np.asarray(g).reshape(len(local), -1)
     keep = np.concatenate([np.ones(len(pts), bool), np.abs(d[len(pts) :]) < 0.01])
     out = set()
-    for j, (name, (lo, hi)) in enumerate(spans(concept).items()):
-        moved = np.abs(g[keep, j]) * MOVE * (hi - lo) >= 0.001
-        if int(moved.sum()) >= MIN_MOVED:
+    units = dims(concept)
+    for j, name in enumerate(spans(concept)):
+        follow = FOLLOW.get(units[name] or "", FOLLOW["length"])
+        if int((np.abs(g[keep, j]) >= follow).sum()) >= MIN_MOVED:
             out.add(name)
     return out
 

@@ -465,6 +465,11 @@ def fitted_instance_of(concept: Concept, est: Any) -> Instance:
     from grace_dsl.perception.views import join_params
 
     defaults = concept.instantiate().params  # the non-float ones an Estimate does not carry
-    fixed = {s.name: defaults[s.name] for s in concept.params if s.kind not in ("num", "vec")}
+    chosen = getattr(est, "discrete", {})
+    fixed = {
+        s.name: chosen.get(s.name, defaults[s.name])
+        for s in concept.params
+        if s.kind not in ("num", "vec")
+    }
     inst = concept.instantiate(params=join_params(concept, est.params, fixed), pose=est.pose)
     return inst.with_joints(est.joints) if est.joints else inst
