@@ -239,7 +239,8 @@ def plane_starts(
             pose = np.eye(4)
             pose[:3, :3], pose[:3, 3] = rot, t
             best.setdefault(id(plane), []).append((err, pose, sized, dict(state)))
-    # each plane's best joint state first, variants of the best, then the rest
+    # each plane's best joint state first (a learned start is screened against the first two,
+    # which must be two facings when there are two), variants of the best, then the rest
     ranked = [sorted(v, key=lambda s: s[0]) for v in best.values()]
     firsts = sorted((r[0] for r in ranked), key=lambda s: s[0])
     rest = sorted((s for r in ranked for s in r[1:]), key=lambda s: s[0])
@@ -247,7 +248,7 @@ def plane_starts(
         return []
     err, pose, top, state = firsts[0]
     others = [(err, pose, v, state) for v in variants(concept, top, rng)]
-    return firsts[:1] + others[:1] + firsts[1:] + others[1:] + rest
+    return firsts + others + rest
 
 
 def variants(
