@@ -82,7 +82,7 @@ def estimate(
         pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
     params, joints, source = None, None, "fit"
     if isinstance(init, Estimate):
-        params = join_params(concept, init.params, {})
+        params = join_params(concept, init.params, dict(init.discrete))
         joints = dict(init.joints)
         pose_hint = init.pose if pose_hint is None else pose_hint
         source = "learned+fit"
@@ -96,7 +96,7 @@ def estimate(
     result = fit(
         concept, pts, camera=cam, pose_hint=hint, init=params, init_joints=joints, seed=seed
     )
-    floats, _ = split_params(concept, result.params)
+    floats, discrete = split_params(concept, result.params)
     return Estimate(
         concept=concept.name,
         params=floats,
@@ -106,6 +106,7 @@ def estimate(
         confidence=confidence(result.residual, result.inliers, len(pts)),
         seconds=time.perf_counter() - start,
         source=source,
+        discrete=discrete,
     )
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -27,12 +27,15 @@ from scipy.spatial import cKDTree
 
 from grace_dsl.perception.camera import look_at
 from grace_dsl.perception.model import SdfModel, sdf_model
+from grace_dsl.perception.start import feasible_instance, plane_starts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Concept
 from grace_dsl.runtime.shapes import ShapeTree
 
 CAUCHY = 0.004  # m: the robust scale (a 2 mm sensor's points lie well inside it)
+# m: the scale a start is screened at first, so parts a few centimetres off still pull
+WIDE_CAUCHY = 0.03
 # m toward the camera from an observed point: free space (a handle standing off a front)
 FREE_STEPS = tuple(np.geomspace(0.006, 0.12, 6).tolist())
 FRONT_RAYS = 128
@@ -45,6 +48,8 @@ ICP_POINTS = 256
 SCREEN_ITERATIONS = 6  # per global start, before the best one is refined to the end
 JOINT_STARTS = (0.0, 0.5, 0.9)  # of each joint's range
 MODEL_POINTS = 1500
+PLANE_STARTS = 5  # of the facing-plane starts, screened with the others
+LEARNED_PLANES = 2  # of them screened against a learned start's pose
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,7 @@ class FitResult:
     residual: float  # robust mean |distance| (m) of the points to the fitted surface
     inliers: float  # share of points within 3 CAUCHY of the surface
     iterations: int
+    free: float = 0.0  # m: surface where the camera saw through, per observed point (robust)
 
 
 def rotation_exp(w: np.ndarray) -> np.ndarray:
@@ -199,7 +205,11 @@ def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndar
     unit = rays / np.maximum(dist, 1e-9)[:, None]
     rng = np.random.default_rng(seed)
     some = rng.choice(len(points), min(FRONT_RAYS, len(points)), replace=False)
-    front = [points[some] - s * unit[some] for s in FREE_STEPS]
+    # each ray's steps jittered within their geometric spacing: together the rays cover every
+    # depth in front of the points, not six fixed ones a thin bar can sit between
+    ratio = FREE_STEPS[1] / FREE_STEPS[0]
+    jitter = ratio ** rng.uniform(-0.5, 0.5, (len(FREE_STEPS), len(some)))
+    front = [points[some] - (s * j)[:, None] * unit[some] for s, j in zip(FREE_STEPS, jitter)]
     c = unit.mean(axis=0)
     c /= np.linalg.norm(c)
     e1 = np.cross(c, [0.0, 1.0, 0.0] if abs(c[1]) < 0.9 else [1.0, 0.0, 0.0])
@@ -239,37 +249,17 @@ class _State:
     cost: float = math.inf
 
 
-def feasible_instance(concept: Concept, params: Mapping[str, Any]) -> Instance:
-    """An instance at ``params``, or, when they break a requirement (a start from a network or
-    a scaled default can), at the first of them pulled toward the defaults that does not."""
-    try:
-        return concept.instantiate(params=params)
-    except ParameterError:
-        pass
-    defaults = concept.instantiate().params
-    for a in (0.9, 0.75, 0.5, 0.25):
-        mixed = dict(params)
-        for s in concept.params:
-            if s.kind in ("num", "vec") and s.name in params:
-                v = np.asarray(defaults[s.name], float) + a * (
-                    np.asarray(params[s.name], float) - np.asarray(defaults[s.name], float)
-                )
-                mixed[s.name] = float(v) if s.kind == "num" else tuple(map(float, v))
-        try:
-            return concept.instantiate(params=mixed)
-        except ParameterError:
-            continue
-    return concept.instantiate(
-        params={k: v for k, v in params.items() if k not in defaults}
-        | {k: defaults[k] for k in defaults if k in params}
-    )
-
-
 class Fitter:
     """Levenberg-Marquardt on one concept with its discrete parameters fixed."""
 
-    def __init__(self, concept: Concept, params: Mapping[str, Any], joints: Mapping[str, float]):
-        self.concept = concept
+    def __init__(
+        self,
+        concept: Concept,
+        params: Mapping[str, Any],
+        joints: Mapping[str, float],
+        cauchy: float = CAUCHY,
+    ):
+        self.concept, self.cauchy = concept, cauchy
         inst = feasible_instance(concept, params)
         if joints:
             inst = inst.with_joints(dict(joints))
@@ -317,7 +307,7 @@ class Fitter:
         n = len(y)
         dd, df = d[:n], d[n:]
         # Cauchy as IRLS: sqrt of the weight times the distance
-        wd = 1.0 / np.sqrt(1.0 + (dd / CAUCHY) ** 2)
+        wd = 1.0 / np.sqrt(1.0 + (dd / self.cauchy) ** 2)
         wf = FREE_WEIGHT * (df < 0)
         scale = 1.0 / math.sqrt(n)
         prior = PRIOR_WEIGHT * (st.theta - self.theta0) / self.span
@@ -366,10 +356,13 @@ class Fitter:
             if gain < 1e-10 * max(st.cost, 1e-12):
                 break
         frame = _inv(st.pose)
-        _, _, dd = self.residuals(
-            st, _transform(frame, points), _transform(frame, free_world), False
-        )
-        return self._result(st, dd, done)
+        free_local = _transform(frame, free_world)
+        _, _, dd = self.residuals(st, _transform(frame, points), free_local, False)
+        df = np.asarray(
+            self.model.value.batch(st.theta, self._p(st.theta), st.q, np.zeros(6), free_local)
+        ).reshape(-1)
+        seen = float(np.sum(np.minimum(np.maximum(-df, 0.0), 3 * CAUCHY))) / len(points)
+        return replace(self._result(st, dd, done), free=FREE_WEIGHT * seen)
 
     def _step(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
         theta = np.clip(st.theta + step[:nt], self.lo, self.hi)
@@ -413,30 +406,43 @@ def fit(
     starts: int = 6,
     iterations: int = 20,
     seed: int = 0,
+    facing: bool = True,
 ) -> FitResult:
     """Fit ``concept`` to ``points`` (N, 3): the best of ``starts`` refinements.
 
     ``camera`` is the camera's position in the points' frame (default the origin: points in the
     camera frame), ``pose_hint`` a 4x4 concept pose to start from (skips the rotation search),
-    ``init`` parameter values to start from (a learned estimate: every parameter, or some)."""
+    ``init`` parameter values to start from (a learned estimate: every parameter, or some);
+    ``facing`` adds the starts of ``perception.start`` (the front's plane gives the rotation)
+    for points in a level camera's frame."""
     base = concept.instantiate().params
     if init:
         base.update(init)
     cam = np.zeros(3) if camera is None else np.asarray(camera, float)
     hint = None if pose_hint is None else np.asarray(pose_hint, float)
+    inst = feasible_instance(concept, base)
+    states = [dict(init_joints)] if init_joints else joint_starts(inst)
+    planes = (
+        plane_starts(concept, points, inst.params, states, camera, seed)
+        if facing and camera is None
+        else []
+    )
     if hint is not None and init:
-        cands = [(0.0, hint, base, dict(init_joints or {}))]
+        # the learned pose first, then the planes' rotations with the learned parameters
+        cands = [(0.0, hint, base, dict(init_joints or {}))] + planes[:LEARNED_PLANES]
     else:
         rots = None if hint is None else [hint[:3, :3]]
-        cands = global_init(concept, points, base, rots, seed, init_joints)
+        icp = global_init(concept, points, base, rots, seed, init_joints)
+        cands = planes[:PLANE_STARTS] + icp[: max(starts - min(len(planes), PLANE_STARTS), 1)]
     tried: list[FitResult] = []
     short = iterations if len(cands) == 1 else SCREEN_ITERATIONS
     for _, pose, params, joints in cands[:starts]:
         try:
-            fitter = Fitter(concept, params, joints)
+            fitter = Fitter(concept, params, joints, WIDE_CAUCHY)
         except ParameterError:  # a scaled start that breaks a requirement
-            fitter = Fitter(concept, base, joints)
-        tried.append(fitter.run(points, pose, cam, short))
+            fitter = Fitter(concept, base, joints, WIDE_CAUCHY)
+        wide = fitter.run(points, pose, cam, short)
+        tried.append(Fitter(concept, wide.params, wide.joints).run(points, wide.pose, cam, short))
     best = min(tried, key=_score)
     if short < iterations:  # continue the best screened start
         best = Fitter(concept, best.params, best.joints).run(points, best.pose, cam, iterations)
@@ -444,7 +450,8 @@ def fit(
 
 
 def _score(r: FitResult) -> float:
-    return r.residual + 0.01 * (1 - r.inliers)
+    """Lower is better: the points' robust distance, surface in seen-through space, outliers."""
+    return r.residual + r.free + 0.01 * (1 - r.inliers)
 
 
 def fitted_instance(concept: Concept, result: FitResult) -> Instance:
@@ -458,6 +465,11 @@ def fitted_instance_of(concept: Concept, est: Any) -> Instance:
     from grace_dsl.perception.views import join_params
 
     defaults = concept.instantiate().params  # the non-float ones an Estimate does not carry
-    fixed = {s.name: defaults[s.name] for s in concept.params if s.kind not in ("num", "vec")}
+    chosen = getattr(est, "discrete", {})
+    fixed = {
+        s.name: chosen.get(s.name, defaults[s.name])
+        for s in concept.params
+        if s.kind not in ("num", "vec")
+    }
     inst = concept.instantiate(params=join_params(concept, est.params, fixed), pose=est.pose)
     return inst.with_joints(est.joints) if est.joints else inst

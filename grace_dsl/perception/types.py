@@ -77,6 +77,8 @@ class Estimate:
     confidence: float
     seconds: float
     source: str = "fit"  # "learned", "fit" or "learned+fit"
+    # the non-float parameters the fit chose (a hinge's side), when it chose them
+    discrete: dict[str, object] = field(default_factory=dict)
 
 
 class Segmenter(Protocol):
