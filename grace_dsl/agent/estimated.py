@@ -51,6 +51,8 @@ NOISE = 0.002  # m: the depth sensor's Gaussian sigma
 CV = np.diag([1.0, -1.0, -1.0, 1.0])
 FRAMING = 3.0  # the camera stands this many bounding radii from the object's centre
 IMAGE = (320, 240)  # pixels (width, height)
+PART = "handle"  # the part whose pixels a look counts (the part most grasps hold)
+MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
 
 
 class EstimateRefused(PerceptionError):
@@ -91,6 +93,7 @@ class Perceived:
     points: int  # object pixels the estimate used
     seconds: float
     estimate: Estimate | None = field(default=None, compare=False, repr=False)
+    part_points: int = -1  # the handle's pixels in view (-1: the concept has no handle)
 
     def instance(self, concept: Concept) -> Instance:
         """The agent's model of the object: the estimated instance at its world pose."""
@@ -102,6 +105,7 @@ class Perceived:
         return {
             "view": [round(self.view.azimuth, 2), round(self.view.elevation, 2)],
             "points": self.points,
+            "handle_points": self.part_points,
             "residual_mm": round(1000 * self.residual, 2),
             "confidence": round(self.confidence, 3),
             "source": self.source,
@@ -128,9 +132,12 @@ def camera_for(view: View, target: np.ndarray, radius: float) -> Camera:
     return Camera(view.azimuth, view.elevation, dist, (x, y, z), width=w, height=h)
 
 
-def render_from(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, camera: Camera) -> Frame:
+def render_from(
+    scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, camera: Camera
+) -> tuple[Frame, np.ndarray]:
     """The scene's ``view`` camera moved to ``camera`` (pose and field of view), rendered, and
-    put back: a look from anywhere without recompiling the world."""
+    put back: a look from anywhere without recompiling the world. Also the geom seen at each
+    pixel (-1: none), which names the parts (``handle__bar``: part ``handle``)."""
     cid = model.camera("view").id
     saved = (model.cam_pos[cid].copy(), model.cam_quat[cid].copy(), float(model.cam_fovy[cid]))
     pose = camera.pose()
@@ -140,10 +147,23 @@ def render_from(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, camera
     try:
         _place_cameras(model, data)
         frame = replace(scene, camera=camera).render(model, data)
+        geoms = _geom_ids(model, data, camera)
     finally:
         model.cam_pos[cid], model.cam_quat[cid], model.cam_fovy[cid] = saved
         _place_cameras(model, data)
-    return frame
+    return frame, geoms
+
+
+def _geom_ids(model: mujoco.MjModel, data: mujoco.MjData, camera: Camera) -> np.ndarray:
+    """Per pixel the MuJoCo geom seen from camera ``view`` (-1: none): the parts' labels."""
+    import mujoco
+
+    with mujoco.Renderer(model, camera.height, camera.width) as renderer:
+        renderer.enable_segmentation_rendering()
+        renderer.update_scene(data, camera="view")
+        seg = renderer.render().copy()
+    ids, types = seg[..., 0], seg[..., 1]
+    return np.where(types == int(mujoco.mjtObj.mjOBJ_GEOM), ids, -1).astype(np.int32)
 
 
 def _place_cameras(model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -154,9 +174,16 @@ def _place_cameras(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     mujoco.mj_camlight(model, data)
 
 
-def object_shot(frame: Frame, scene: Scene, model: mujoco.MjModel, index: int) -> DepthRender:
-    """The frame as perception's ``DepthRender``: OpenCV camera pose and intrinsics, and per
-    pixel the index of the object ``index``'s link it sees (-1: anything else)."""
+def object_shot(
+    frame: Frame,
+    scene: Scene,
+    model: mujoco.MjModel,
+    index: int,
+    geoms: np.ndarray | None = None,
+) -> DepthRender:
+    """The frame as perception's ``DepthRender``: OpenCV camera pose and intrinsics, per pixel
+    the index of the object ``index``'s link it sees (-1: anything else) and, given ``geoms``
+    (``render_from``), of its shape (``handle.bar``: what the segmenter's part queries use)."""
     links = tuple(scene.instances[index].links)
     position = {name: k for k, name in enumerate(links)}
     labels = np.full(frame.segmentation.shape, -1, dtype=np.int16)
@@ -164,7 +191,22 @@ def object_shot(frame: Frame, scene: Scene, model: mujoco.MjModel, index: int) -
         owner = scene.link_of(model, int(body)) if body > 0 else None
         if owner is not None and owner[0] == index and owner[1] in position:
             labels[frame.segmentation == body] = position[owner[1]]
-    return DepthRender(frame.depth, labels, links, frame.camera.pose() @ CV, intrinsics(frame))
+    shapes: list[str] = []
+    shape_labels = None
+    if geoms is not None:
+        shape_labels = np.full(geoms.shape, -1, dtype=np.int16)
+        prefix = scene.prefixes[index]
+        for g in np.unique(geoms[labels >= 0]):
+            name = model.geom(int(g)).name
+            if not name.startswith(prefix):
+                continue
+            shape = name[len(prefix) :].removesuffix("__collision").replace("__", ".")
+            if shape not in shapes:
+                shapes.append(shape)
+            shape_labels[(geoms == g) & (labels >= 0)] = shapes.index(shape)
+    camera_pose = frame.camera.pose() @ CV
+    return DepthRender(frame.depth, labels, links, camera_pose, intrinsics(frame), shape_labels,
+                       tuple(shapes))  # fmt: skip
 
 
 def intrinsics(frame: Frame) -> Intrinsics:
@@ -181,16 +223,24 @@ def object_cloud(
     seed: int,
     segmenter: Segmenter | None = None,
     noise: float = NOISE,
-) -> np.ndarray:
-    """The object's camera-frame cloud (OpenCV axes): the segmenter's masks for the concept's
-    name joined, from the depth with the sensor's noise (seeded)."""
+    part: str = "",
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The object's camera-frame cloud (OpenCV axes: the segmenter's masks for the concept's
+    name joined) from the depth with the sensor's noise (seeded), and that of its ``part``
+    (None when not asked for)."""
     seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
     depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
     masks = seg.segment(rgb, depth, concept)
     if not masks:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), None
     mask = np.logical_or.reduce(list(masks.values()))
-    return back_project(depth, shot.intrinsics, mask)
+    points = back_project(depth, shot.intrinsics, mask)
+    found = seg.segment(rgb, depth, part) if part else {}
+    if not found:
+        return points, None
+    part_mask = np.logical_or.reduce(list(found.values())) & mask
+    part_points = back_project(depth, shot.intrinsics, part_mask)
+    return points, part_points
 
 
 def estimate_cloud(
@@ -240,10 +290,12 @@ def perceive(
     seed: int = 0,
     min_confidence: float = MIN_CONFIDENCE,
     fixed: Mapping[str, Any] | None = None,
+    part_points: int = -1,
 ) -> Perceived:
     """Estimate ``concept`` from a camera-frame cloud (``fixed``: its non-float parameters,
-    ``fixed_params``); ``EstimateRefused`` when the cloud is unusable (too few points, bad
-    values) or the estimate's confidence is below ``min_confidence``."""
+    ``fixed_params``; ``part_points``: the handle's pixels in view, -1 unknown, reported);
+    ``EstimateRefused`` when the cloud is unusable (too few points, bad values) or the
+    estimate's confidence is below ``min_confidence``."""
     from grace_dsl.perception.views import join_params
 
     fixed = fixed_params(concept) if fixed is None else dict(fixed)
@@ -263,6 +315,7 @@ def perceive(
         len(points),
         float(est.seconds),
         est,
+        part_points,
     )
     if not got.confidence >= min_confidence:
         raise EstimateRefused(
@@ -291,12 +344,20 @@ def look(
     """Render the world from ``view`` about ``target``, segment object ``index`` and estimate
     its concept (``perceive``); also refused when the estimated front (the concept's +z, the
     side a robot approaches, where its handle is) faces away from the camera: the view did not
-    show what the agent would grasp."""
+    show what the agent would grasp, or when a concept with a handle shows fewer than
+    ``MIN_PART_POINTS`` of its pixels."""
     camera = camera_for(view, target, radius)
-    frame = render_from(scene, model, data, camera)
-    shot = object_shot(frame, scene, model, index)
-    points = object_cloud(shot, frame.rgb, concept.name, seed, segmenter)
-    got = perceive(concept, points, shot.camera_pose, view, seed, min_confidence, fixed)
+    frame, geoms = render_from(scene, model, data, camera)
+    shot = object_shot(frame, scene, model, index, geoms)
+    wanted = PART if PART in _parts(concept) else ""
+    points, part = object_cloud(shot, frame.rgb, concept.name, seed, segmenter, part=wanted)
+    seen = -1 if not wanted else 0 if part is None else len(part)
+    if 0 <= seen < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
+        raise EstimateRefused(
+            f"{concept.name} from view {_view(view)}: {seen} pixels of its {PART} are in view "
+            f"(at least {MIN_PART_POINTS} needed); take another view"
+        )
+    got = perceive(concept, points, shot.camera_pose, view, seed, min_confidence, fixed, seen)
     eye = camera.pose()[:3, 3]
     toward = (eye - got.pose[:3, 3]) / max(float(np.linalg.norm(eye - got.pose[:3, 3])), 1e-9)
     if float(got.pose[:3, 2] @ toward) <= 0.0:
@@ -325,6 +386,11 @@ def look_around(
         account.append(got.summary())
         return got, account
     return None, account
+
+
+def _parts(concept: Concept) -> set[str]:
+    """The concept's part names (the prefixes of its dotted parameter names: ``handle``)."""
+    return {s.name.split(".")[0] for s in concept.params if "." in s.name}
 
 
 def _view(view: View) -> str:
