@@ -34,6 +34,7 @@ from grace_dsl.perception.errors import PerceptionError
 from grace_dsl.perception.render import DepthRender
 from grace_dsl.perception.segment import GroundTruthSegmenter
 from grace_dsl.perception.types import Estimate, Intrinsics, Segmenter
+from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.sim.camera import Camera
 from grace_dsl.sim.scene import Frame, Scene
 
@@ -301,8 +302,9 @@ def perceive(
     fixed = fixed_params(concept) if fixed is None else dict(fixed)
     try:
         est, pose = estimate_cloud(concept, points, camera_pose, seed, fixed)
-    except PerceptionError as exc:
-        raise EstimateRefused(f"{concept.name} from view {_view(view)}: {exc}") from exc
+    except (PerceptionError, ParameterError) as exc:  # a bad cloud; a fit outside the concept
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise EstimateRefused(f"{concept.name} from view {_view(view)}: {first}") from exc
     got = Perceived(
         concept.name,
         join_params(concept, est.params, fixed),
