@@ -111,3 +111,26 @@ def test_grace_run_estimated_completes_a_step(
     (attempt,) = out["steps"][0]["attempts"]
     assert attempt["estimate"]["source"] == "learned+fit"  # Microwave has shipped weights
     assert attempt["reason"] in ("", "low_confidence", "slip", "timeout", "collision")
+
+
+def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The control: given the truth as its estimate, the estimated episode is the oracle's (the
+    same world, hand and path), so what estimated mode loses is perception's error alone."""
+    from grace_dsl.agent import estimated_episode as ee
+    from grace_dsl.agent.estimated import Perceived
+    from grace_dsl.sim.episode import run_episode
+    from grace_dsl.sim.records import EpisodeConfig
+
+    def truth(true, views, seed, min_confidence):  # type: ignore[no-untyped-def]
+        got = Perceived(true.concept.name, dict(true.params), true.pose, dict(true.joints),
+                        0.0, 1.0, "truth", views[0], 0, 0.0)  # fmt: skip
+        return got, [got.summary()]
+
+    monkeypatch.setattr(ee, "perceive_episode", truth)
+    config = EpisodeConfig("CabinetDrawer", "open", mode="estimated")
+    estimated = ee.run_estimated_episode(config, 3)
+    oracle = run_episode(EpisodeConfig("CabinetDrawer", "open"), 3)
+    assert estimated.strict == oracle.strict and estimated.option == oracle.option
+    assert abs(estimated.q_final - oracle.q_final) < 2e-3
+    assert estimated.estimate["pose_error_mm"] == 0.0
+    assert estimated.estimate["length_error_max_mm"] == 0.0
