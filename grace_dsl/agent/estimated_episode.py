@@ -91,7 +91,7 @@ def estimated_episode(
                        draw, true)  # fmt: skip
         return replace(early, estimate={"looks": account, "refused": True})
     errors = estimate_errors(true, got, task.joint)
-    believed = _believed(got, concept, ranges, true)
+    believed = _believed(got, concept, ranges)
     if isinstance(believed, str):
         early = _early(config, seed, task, "no_feasible_grasp", believed, started, draw, true)
         return replace(early, estimate={"looks": account, "refused": True, **errors})
@@ -155,15 +155,13 @@ def estimate_errors(true: Instance, got: Perceived, joint: str) -> dict[str, Any
     }
 
 
-def _believed(got: Perceived, concept: Any, ranges: str, true: Instance) -> Instance | str:
+def _believed(got: Perceived, concept: Any, ranges: str) -> Instance | str:
     """The agent's instance, or why it cannot be built (an estimate outside the concept)."""
     try:
         inst = concept.instantiate(params=dict(got.params), pose=got.pose, ranges=ranges)
-        inst = with_joints_clipped(inst, got.joints)
+        return with_joints_clipped(inst, got.joints)
     except (GraceError, ValueError) as exc:
         return f"the estimate is no valid {concept.name}: {exc}"
-    del true
-    return inst
 
 
 def _scene(true: Instance) -> tuple[Scene, Any, Any]:
