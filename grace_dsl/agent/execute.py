@@ -23,11 +23,12 @@ the concept lacks) raises ``ExecutionError`` before anything moves.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from grace_dsl.agent.errors import ExecutionError
 from grace_dsl.agent.plan import Condition, Plan, SceneObject, SceneSpec, SubTask, Target
+from grace_dsl.perception.errors import PerceptionError
 from grace_dsl.runtime.errors import GraceError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.sim.episode import FOLLOW_TO
@@ -55,6 +56,7 @@ REASONS = (
     "timeout",
     "unstable",
     "unreachable_target",
+    "low_confidence",  # estimated mode: the agent refused its estimate of the object
 )
 
 
@@ -65,6 +67,11 @@ class ParamSource(Protocol):
     the world's camera (``world.render()``) and returning its estimate: the ``estimated`` mode."""
 
     def params(self, obj: SceneObject, world: MultiWorld) -> dict[str, Any]: ...
+
+
+# Optional, additive: a source may also have ``instance(obj, world) -> Instance`` (its posed
+# model with its own joints: the executor then acts on it) and ``last_look(name) -> dict`` (a
+# JSON-able account of its last estimate, kept on each attempt); ``agent.estimated.Estimator``.
 
 
 @dataclass(frozen=True)
@@ -87,6 +94,7 @@ class Attempt:
     reason: str = ""  # one of REASONS
     detail: str = ""  # a sentence for a person
     sim_seconds: float = 0.0
+    estimate: dict[str, Any] = field(default_factory=dict)  # estimated mode: the look used
 
 
 @dataclass(frozen=True)
@@ -174,6 +182,10 @@ class Executor:
         """The agent's model of object ``name``: parameters from the ``ParamSource``, joint
         values measured in the world."""
         obj = self.objects[name]
+        perceived = getattr(self.source, "instance", None)
+        if perceived is not None:  # a posed model of its own (estimated mode)
+            inst: Instance = perceived(obj, self.world)
+            return inst
         params = self.source.params(obj, self.world)
         model = self._instance(obj, params) if params != obj.params else None
         inst = model if model is not None else self.world.instance(name)
@@ -245,8 +257,23 @@ class Executor:
         return StepResult(index, sub, tuple(attempts), q_start, q_end, attempts[-1].verified)
 
     def _attempt(self, sub: SubTask, sign: float, tried: list[str]) -> Attempt:
-        inst = self.belief(sub.object)
         q0 = self.world.q(sub.object, sub.joint)
+        try:
+            inst = self.belief(sub.object)
+        except PerceptionError as exc:  # a refused estimate: never acted on; the next looks anew
+            return Attempt("", q0, q0, None, False, "low_confidence", str(exc),
+                           estimate=self._look(sub.object))  # fmt: skip
+        attempt = self._act(sub, sign, tried, inst, q0)
+        look = self._look(sub.object)
+        return replace(attempt, estimate=look) if look else attempt
+
+    def _look(self, name: str) -> dict[str, Any]:
+        report = getattr(self.source, "last_look", None)
+        return dict(report(name)) if report is not None else {}
+
+    def _act(
+        self, sub: SubTask, sign: float, tried: list[str], inst: Instance, q0: float
+    ) -> Attempt:
         lo, hi = inst.joint_limits()[sub.joint]
         goal = aim(sub.target, sub.condition, q0, lo, hi, sign)
         if goal is not None and (goal - q0) * sign <= 0:

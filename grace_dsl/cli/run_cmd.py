@@ -10,7 +10,9 @@ the whole result as JSON. ``--png DIR`` writes the scene before and after; ``--h
 with both pictures and the step table.
 
 Exit codes: 0 every sub-task verified, 3 some did not (the run itself worked), 1 a bad argument,
-scene or plan, 2 a mode that is not built yet (``--agent arm``, ``--mode estimated``).
+scene or plan, 2 a mode that is not built yet (``--agent arm``). ``--mode estimated``: the
+agent's model of each object comes from the camera (``grace_dsl.agent.estimated.Estimator``), and
+a failed attempt (or a refused estimate) is retried after a new look from the next view.
 """
 
 from __future__ import annotations
@@ -80,17 +82,13 @@ def _run(args: Any) -> int:
 
     if args.agent != "gripper":
         raise NotBuiltError("--agent arm is not built yet: grace run drives the flying hand")
-    if args.mode != "oracle":
-        raise NotBuiltError(
-            "--mode estimated needs a perception estimator (agent.execute.ParamSource); "
-            "only --mode oracle runs today"
-        )
     library = load_library()
     scene = load_scene(args.scene, library)
     executor = Executor(
         scene,
         library,
         Gripper.load(args.hand),
+        params=_source(args),
         max_attempts=args.attempts,
         seconds=args.seconds,
         camera=Camera(width=640, height=480),
@@ -113,6 +111,16 @@ def _run(args: Any) -> int:
     else:
         _print(result)
     return 0 if result.success else FAILED
+
+
+def _source(args: Any) -> Any:
+    """The agent's parameters: the scene file's (oracle) or the camera's (estimated: each
+    attempt looks anew from the next view, so a retry re-estimates; ``agent.estimated``)."""
+    if args.mode != "estimated":
+        return None
+    from grace_dsl.agent.estimated import Estimator
+
+    return Estimator()
 
 
 def run_suite(args: Any) -> int:
@@ -210,7 +218,7 @@ def _print(result: Any) -> None:
                     f"{a.q_before:.3f} -> {a.q_after:.3f}",
                     f"[{c.lo:.3f}, {c.hi:.3f}]",
                     "yes" if a.verified else "no",
-                    a.reason or "",
+                    (a.reason or "") + _looked(a),
                 ]
             )
     print_table(
@@ -219,6 +227,15 @@ def _print(result: Any) -> None:
         rows,
     )
     print_text("success" if result.success else "FAILED: a condition did not hold")
+
+
+def _looked(attempt: Any) -> str:
+    """Estimated mode: the look an attempt acted on (view, confidence), or ''."""
+    look = getattr(attempt, "estimate", None) or {}
+    if "confidence" not in look:
+        return ""
+    az, el = look.get("view", ["?", "?"])
+    return f" (view {az:.0f}/{el:.0f} deg, confidence {look['confidence']:.2f})"
 
 
 def _png(rgb: np.ndarray | None) -> bytes:

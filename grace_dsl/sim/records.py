@@ -65,6 +65,9 @@ class EpisodeRecord:
     option: str = ""  # the manipulation function used, e.g. "handle.pull"
     sim_seconds: float = 0.0
     wall_seconds: float = 0.0
+    #: estimated mode: the agent's looks (view, confidence, residual), the estimate's errors
+    #: against the truth (parameters, pose, joint) and whether it was refused; {} in oracle mode
+    estimate: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)

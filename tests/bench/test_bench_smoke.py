@@ -33,6 +33,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_runtime.py",
         "bench_sim.py",
         "bench_sim_arm.py",
+        "bench_sim_estimated.py",
         "bench_sim_hands.py",
         "bench_sim_throughput.py",
         "bench_tasks.py",

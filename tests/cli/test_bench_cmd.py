@@ -41,9 +41,24 @@ def _args(*argv: str) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
-def test_estimated_mode_says_it_is_not_built(capsys: pytest.CaptureFixture[str]) -> None:
-    assert grace(["bench", "--mode", "estimated"]) == 2
-    assert "perception layer" in capsys.readouterr().err
+def test_estimated_mode_with_the_arm_says_it_is_not_built(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert grace(["bench", "--mode", "estimated", "--agent", "arm"]) == 2
+    assert "not built" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_estimated_mode_runs_and_records_the_estimate(tmp_path: Path) -> None:
+    """``--mode estimated``: the agent's model from the camera; each record says how it looked
+    and, when it accepted an estimate, how far that estimate was from the truth."""
+    argv = ["--mode", "estimated", "--categories", "CabinetDrawer", "--episodes", "1"]
+    assert run_bench(_args(*argv, "--out", str(tmp_path))) == 0
+    records = read_jsonl(tmp_path / "episodes.jsonl")
+    assert [r.config.mode for r in records] == ["estimated", "estimated"]
+    for r in records:
+        assert r.reason in FAILURE_REASONS and r.estimate["looks"]
+        assert r.estimate["refused"] or "pose_error_mm" in r.estimate
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,495 @@
+"""The ``estimated`` mode: the agent's model of an object from the simulated RGB-D camera.
+
+Why this lives in the agent layer: it needs the simulator's camera (``grace_dsl.sim``) and
+perception's estimator (``grace_dsl.perception``), and neither of those may import the other.
+
+One look (``look``): the world is rendered by MuJoCo from a camera placed on the upper
+hemisphere about the object (azimuth, elevation; the protocol's or the agent's own choice), the
+depth gets a seeded Gaussian sensor noise (sigma 2 mm, as perception's benchmark), the object's
+pixels are picked by a ``Segmenter`` (default: ``GroundTruthSegmenter`` on the renderer's body
+labels, asked for the object's concept by name) and back-projected into the camera frame
+(OpenCV axes, as perception's clouds). ``eac.estimate`` then fits the concept, started from the
+shipped learned network's estimate where the concept has weights. The result (``Perceived``) is
+the concept's parameters, its WORLD pose (camera pose times the estimate's camera-frame pose),
+its joints, the residual and the confidence.
+
+A look whose confidence is below ``MIN_CONFIDENCE`` is refused (``EstimateRefused``, a typed
+error carrying the estimate): the agent never acts on a model it does not trust; the caller takes
+another view or reports the refusal. Parameters perception does not estimate (integers, choices,
+flags: the concept's structure) are given (``fixed_params``: the scene's or the draw's, else the
+concept's defaults) and held fixed in the fit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from grace_dsl.perception.camera import DepthNoise, back_project
+from grace_dsl.perception.errors import PerceptionError
+from grace_dsl.perception.render import DepthRender
+from grace_dsl.perception.segment import GroundTruthSegmenter
+from grace_dsl.perception.types import Estimate, Intrinsics, Segmenter
+from grace_dsl.runtime.errors import ParameterError
+from grace_dsl.sim.camera import Camera
+from grace_dsl.sim.scene import Frame, Scene
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from grace_dsl.agent.plan import SceneObject
+    from grace_dsl.runtime.instance import Instance
+    from grace_dsl.runtime.library import Concept
+    from grace_dsl.sim.multi import MultiWorld
+
+MIN_CONFIDENCE = 0.5  # below this an estimate is refused, never acted on
+NOISE = 0.002  # m: the depth sensor's Gaussian sigma
+#: OpenCV camera axes (x right, y down, z forward) from MuJoCo's (x right, y up, z backward)
+CV = np.diag([1.0, -1.0, -1.0, 1.0])
+FRAMING = 3.0  # the camera stands this many bounding radii from the object's centre
+IMAGE = (320, 240)  # pixels (width, height)
+PART = "handle"  # the part whose pixels a look counts (the part most grasps hold)
+MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
+
+
+class EstimateRefused(PerceptionError):
+    """The estimate's confidence is below the agent's threshold: acting on it would be a guess.
+
+    ``estimate`` holds the refused estimate (its residual and confidence say why); take another
+    view, or lower ``min_confidence`` knowingly."""
+
+    def __init__(self, message: str, perceived: Perceived | None = None):
+        super().__init__(message)
+        self.perceived = perceived
+
+
+@dataclass(frozen=True)
+class View:
+    """Where the camera looks from: azimuth and elevation (degrees) about the object."""
+
+    azimuth: float
+    elevation: float
+
+    def opposite(self) -> View:
+        """The view from the other side of the object (azimuth + 180 degrees)."""
+        return View((self.azimuth + 180.0) % 360.0, self.elevation)
+
+
+@dataclass(frozen=True)
+class Perceived:
+    """One look's outcome: the estimate, its world pose and the view it came from."""
+
+    concept: str
+    params: dict[str, Any]  # instantiate's values (estimated floats, defaults for the rest)
+    pose: np.ndarray  # world <- concept
+    joints: dict[str, float]
+    residual: float
+    confidence: float
+    source: str  # "fit" or "learned+fit"
+    view: View
+    points: int  # object pixels the estimate used
+    seconds: float
+    estimate: Estimate | None = field(default=None, compare=False, repr=False)
+    part_points: int = -1  # the handle's pixels in view (-1: the concept has no handle)
+
+    def instance(self, concept: Concept) -> Instance:
+        """The agent's model of the object: the estimated instance at its world pose."""
+        inst = concept.instantiate(params=dict(self.params), pose=self.pose)
+        return with_joints_clipped(inst, self.joints)
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-able account (for records and reports)."""
+        return {
+            "view": [round(self.view.azimuth, 2), round(self.view.elevation, 2)],
+            "points": self.points,
+            "handle_points": self.part_points,
+            "residual_mm": round(1000 * self.residual, 2),
+            "confidence": round(self.confidence, 3),
+            "source": self.source,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def with_joints_clipped(inst: Instance, joints: Mapping[str, float]) -> Instance:
+    """``inst`` with ``joints`` clipped into its ranges: a fit ends a hair past a stop
+    (-1e-11 rad), which ``with_joints`` rightly refuses."""
+    limits = inst.joint_limits()
+    clipped = {
+        name: min(max(float(q), limits[name][0]), limits[name][1]) if name in limits else q
+        for name, q in joints.items()
+    }
+    return inst.with_joints(clipped) if clipped else inst
+
+
+def camera_for(view: View, target: np.ndarray, radius: float) -> Camera:
+    """A camera at ``view`` looking at ``target`` from ``FRAMING`` bounding radii."""
+    w, h = IMAGE
+    x, y, z = (float(v) for v in target)
+    dist = FRAMING * max(radius, 0.05)
+    return Camera(view.azimuth, view.elevation, dist, (x, y, z), width=w, height=h)
+
+
+def render_from(
+    scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, camera: Camera
+) -> tuple[Frame, np.ndarray]:
+    """The scene's ``view`` camera moved to ``camera`` (pose and field of view), rendered, and
+    put back: a look from anywhere without recompiling the world. Also the geom seen at each
+    pixel (-1: none), which names the parts (``handle__bar``: part ``handle``)."""
+    cid = model.camera("view").id
+    saved = (model.cam_pos[cid].copy(), model.cam_quat[cid].copy(), float(model.cam_fovy[cid]))
+    pose = camera.pose()
+    model.cam_pos[cid] = pose[:3, 3]
+    model.cam_quat[cid] = _quat(pose[:3, :3])
+    model.cam_fovy[cid] = camera.fovy
+    try:
+        _place_cameras(model, data)
+        frame = replace(scene, camera=camera).render(model, data)
+        geoms = _geom_ids(model, data, camera)
+    finally:
+        model.cam_pos[cid], model.cam_quat[cid], model.cam_fovy[cid] = saved
+        _place_cameras(model, data)
+    return frame, geoms
+
+
+def _geom_ids(model: mujoco.MjModel, data: mujoco.MjData, camera: Camera) -> np.ndarray:
+    """Per pixel the MuJoCo geom seen from camera ``view`` (-1: none): the parts' labels."""
+    import mujoco
+
+    with mujoco.Renderer(model, camera.height, camera.width) as renderer:
+        renderer.enable_segmentation_rendering()
+        renderer.update_scene(data, camera="view")
+        seg = renderer.render().copy()
+    ids, types = seg[..., 0], seg[..., 1]
+    return np.where(types == int(mujoco.mjtObj.mjOBJ_GEOM), ids, -1).astype(np.int32)
+
+
+def _place_cameras(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """The cameras' world poses from the model (rendering reads them from ``data``)."""
+    import mujoco
+
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+
+
+def object_shot(
+    frame: Frame,
+    scene: Scene,
+    model: mujoco.MjModel,
+    index: int,
+    geoms: np.ndarray | None = None,
+) -> DepthRender:
+    """The frame as perception's ``DepthRender``: OpenCV camera pose and intrinsics, per pixel
+    the index of the object ``index``'s link it sees (-1: anything else) and, given ``geoms``
+    (``render_from``), of its shape (``handle.bar``: what the segmenter's part queries use)."""
+    links = tuple(scene.instances[index].links)
+    position = {name: k for k, name in enumerate(links)}
+    labels = np.full(frame.segmentation.shape, -1, dtype=np.int16)
+    for body in np.unique(frame.segmentation):
+        owner = scene.link_of(model, int(body)) if body > 0 else None
+        if owner is not None and owner[0] == index and owner[1] in position:
+            labels[frame.segmentation == body] = position[owner[1]]
+    shapes: list[str] = []
+    shape_labels = None
+    if geoms is not None:
+        shape_labels = np.full(geoms.shape, -1, dtype=np.int16)
+        prefix = scene.prefixes[index]
+        for g in np.unique(geoms[labels >= 0]):
+            name = model.geom(int(g)).name
+            if not name.startswith(prefix):
+                continue
+            shape = name[len(prefix) :].removesuffix("__collision").replace("__", ".")
+            if shape not in shapes:
+                shapes.append(shape)
+            shape_labels[(geoms == g) & (labels >= 0)] = shapes.index(shape)
+    camera_pose = frame.camera.pose() @ CV
+    return DepthRender(frame.depth, labels, links, camera_pose, intrinsics(frame), shape_labels,
+                       tuple(shapes))  # fmt: skip
+
+
+def intrinsics(frame: Frame) -> Intrinsics:
+    """Perception's pinhole model of a sim frame (pixel centres at u + 0.5)."""
+    cam = frame.camera
+    f = cam.focal()
+    return Intrinsics(f, f, cam.width / 2 - 0.5, cam.height / 2 - 0.5, cam.width, cam.height)
+
+
+def object_cloud(
+    shot: DepthRender,
+    rgb: np.ndarray,
+    concept: str,
+    seed: int,
+    segmenter: Segmenter | None = None,
+    noise: float = NOISE,
+    part: str = "",
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The object's camera-frame cloud (OpenCV axes: the segmenter's masks for the concept's
+    name joined) from the depth with the sensor's noise (seeded), and that of its ``part``
+    (None when not asked for)."""
+    seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
+    depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
+    masks = seg.segment(rgb, depth, concept)
+    if not masks:
+        return np.zeros((0, 3)), None
+    mask = np.logical_or.reduce(list(masks.values()))
+    points = back_project(depth, shot.intrinsics, mask)
+    found = seg.segment(rgb, depth, part) if part else {}
+    if not found:
+        return points, None
+    part_mask = np.logical_or.reduce(list(found.values())) & mask
+    part_points = back_project(depth, shot.intrinsics, part_mask)
+    return points, part_points
+
+
+def estimate_cloud(
+    concept: Concept,
+    points: np.ndarray,
+    camera_pose: np.ndarray,
+    seed: int = 0,
+    fixed: Mapping[str, Any] | None = None,
+) -> tuple[Estimate, np.ndarray]:
+    """``eac.estimate`` on a camera-frame cloud, started from the shipped network (its
+    parameters and pose) where the concept has weights, with the ``fixed`` (non-float)
+    parameters given; the estimate and the concept's world pose."""
+    from grace_dsl.perception.estimate import estimate
+    from grace_dsl.perception.views import join_params
+    from grace_dsl.perception.weights import shipped_path
+
+    init: dict[str, Any] = dict(fixed or {})
+    hint = None
+    if shipped_path(concept.name).is_file():
+        from grace_dsl.perception.learned import estimate_learned
+
+        learned = estimate_learned(concept, points)
+        init, hint = join_params(concept, learned.params, init), learned.pose
+    est = estimate(concept, points, init=init or None, pose_hint=hint, seed=seed)
+    if hint is not None:
+        est = replace(est, source="learned+fit")
+    return est, np.asarray(camera_pose, float) @ est.pose
+
+
+def fixed_params(concept: Concept, given: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The parameters perception does not estimate (integers, choices, flags): from ``given``
+    (the structure the scene or the draw states) where it has them, else the defaults."""
+    defaults = concept.instantiate().params
+    given = given or {}
+    return {
+        s.name: given.get(s.name, defaults[s.name])
+        for s in concept.params
+        if s.kind not in ("num", "vec")
+    }
+
+
+def perceive(
+    concept: Concept,
+    points: np.ndarray,
+    camera_pose: np.ndarray,
+    view: View,
+    seed: int = 0,
+    min_confidence: float = MIN_CONFIDENCE,
+    fixed: Mapping[str, Any] | None = None,
+    part_points: int = -1,
+) -> Perceived:
+    """Estimate ``concept`` from a camera-frame cloud (``fixed``: its non-float parameters,
+    ``fixed_params``; ``part_points``: the handle's pixels in view, -1 unknown, reported);
+    ``EstimateRefused`` when the cloud is unusable (too few points, bad values) or the
+    estimate's confidence is below ``min_confidence``."""
+    from grace_dsl.perception.views import join_params
+
+    fixed = fixed_params(concept) if fixed is None else dict(fixed)
+    try:
+        est, pose = estimate_cloud(concept, points, camera_pose, seed, fixed)
+    except (PerceptionError, ParameterError) as exc:  # a bad cloud; a fit outside the concept
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise EstimateRefused(f"{concept.name} from view {_view(view)}: {first}") from exc
+    got = Perceived(
+        concept.name,
+        join_params(concept, est.params, fixed),
+        pose,
+        dict(est.joints),
+        float(est.residual),
+        float(est.confidence),
+        est.source,
+        view,
+        len(points),
+        float(est.seconds),
+        est,
+        part_points,
+    )
+    if not got.confidence >= min_confidence:
+        raise EstimateRefused(
+            f"{concept.name} from view {_view(view)}: confidence {got.confidence:.2f} is below "
+            f"{min_confidence:.2f} (residual {1000 * got.residual:.1f} mm on {len(points)} "
+            "points); take another view",
+            got,
+        )
+    return got
+
+
+def look(
+    scene: Scene,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    index: int,
+    concept: Concept,
+    view: View,
+    target: np.ndarray,
+    radius: float,
+    seed: int = 0,
+    segmenter: Segmenter | None = None,
+    min_confidence: float = MIN_CONFIDENCE,
+    fixed: Mapping[str, Any] | None = None,
+) -> Perceived:
+    """Render the world from ``view`` about ``target``, segment object ``index`` and estimate
+    its concept (``perceive``); also refused when the estimated front (the concept's +z, the
+    side a robot approaches, where its handle is) faces away from the camera: the view did not
+    show what the agent would grasp, or when a concept with a handle shows fewer than
+    ``MIN_PART_POINTS`` of its pixels."""
+    camera = camera_for(view, target, radius)
+    frame, geoms = render_from(scene, model, data, camera)
+    shot = object_shot(frame, scene, model, index, geoms)
+    wanted = PART if PART in _parts(concept) else ""
+    points, part = object_cloud(shot, frame.rgb, concept.name, seed, segmenter, part=wanted)
+    seen = -1 if not wanted else 0 if part is None else len(part)
+    if 0 <= seen < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
+        raise EstimateRefused(
+            f"{concept.name} from view {_view(view)}: {seen} pixels of its {PART} are in view "
+            f"(at least {MIN_PART_POINTS} needed); take another view"
+        )
+    got = perceive(concept, points, shot.camera_pose, view, seed, min_confidence, fixed, seen)
+    eye = camera.pose()[:3, 3]
+    toward = (eye - got.pose[:3, 3]) / max(float(np.linalg.norm(eye - got.pose[:3, 3])), 1e-9)
+    if float(got.pose[:3, 2] @ toward) <= 0.0:
+        raise EstimateRefused(
+            f"{concept.name} from view {_view(view)}: the estimated front faces away from the "
+            "camera, so the side to grasp was not in view; take another view",
+            got,
+        )
+    return got
+
+
+def look_around(
+    views: Sequence[View],
+    see: Any,
+) -> tuple[Perceived | None, list[dict[str, Any]]]:
+    """Try ``see(view)`` for each view in turn until one is not refused: the first accepted
+    estimate (None if every view was refused) and an account of every look."""
+    account: list[dict[str, Any]] = []
+    for view in views:
+        try:
+            got = see(view)
+        except EstimateRefused as exc:
+            entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
+            account.append({**entry, "refused": str(exc)})
+            continue
+        account.append(got.summary())
+        return got, account
+    return None, account
+
+
+def _parts(concept: Concept) -> set[str]:
+    """The concept's part names (the prefixes of its dotted parameter names: ``handle``)."""
+    return {s.name.split(".")[0] for s in concept.params if "." in s.name}
+
+
+def _view(view: View) -> str:
+    return f"(azimuth {view.azimuth:.0f}, elevation {view.elevation:.0f} deg)"
+
+
+def _pair(view: View) -> list[float]:
+    return [round(view.azimuth, 2), round(view.elevation, 2)]
+
+
+def _quat(rot: np.ndarray) -> np.ndarray:
+    """(w, x, y, z) of a rotation matrix: MuJoCo's order."""
+    import mujoco
+
+    out = np.zeros(4)
+    mujoco.mju_mat2Quat(out, np.ascontiguousarray(rot, float).reshape(9))
+    return out
+
+
+def _radius(inst: Instance) -> tuple[np.ndarray, float]:
+    """Centre and half-diagonal of the instance's world bounding box (camera framing)."""
+    lo, hi = inst.mesh(resolution=16).bounds
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
+
+
+def frame_of(inst: Instance) -> tuple[np.ndarray, float]:
+    """Where to aim and how far to stand: the object's bounding box centre and radius."""
+    centre, radius = _radius(inst)
+    return centre, radius if math.isfinite(radius) else 0.5
+
+
+class Estimator:
+    """The ``estimated`` mode's ``ParamSource`` for ``agent.execute.Executor``: each call looks
+    at the object anew (its state may have changed) from the next view of ``views`` (degrees),
+    and returns the estimated parameters; ``perceived(name)`` is the last accepted look, whose
+    pose and joints ``instance`` turns into the agent's model of the object.
+
+    The views cycle: a retry after a failed attempt looks from the next one (a re-estimate from
+    a new view, bounded by the executor's attempts). The camera is aimed at the object's
+    position from the scene file (where the agent was told the object is), framed by the object's
+    size; only the pixels go into the estimate."""
+
+    def __init__(
+        self,
+        views: Sequence[tuple[float, float]] = ((0.0, 40.0), (35.0, 50.0), (-35.0, 35.0)),
+        min_confidence: float = MIN_CONFIDENCE,
+        seed: int = 0,
+        segmenter: Segmenter | None = None,
+    ):
+        if not views:
+            raise PerceptionError("an Estimator needs at least one view (azimuth, elevation)")
+        self.views = [View(float(a), float(e)) for a, e in views]
+        self.min_confidence = min_confidence
+        self.seed = seed
+        self.segmenter = segmenter
+        self.looks: dict[str, int] = {}
+        self.last: dict[str, Perceived] = {}
+        self.account: list[dict[str, Any]] = []  # every look, in order
+        self._last_look: dict[str, dict[str, Any]] = {}
+
+    def next_view(self, obj: SceneObject) -> View:
+        """The object's next view, relative to the way its front faces (its scene yaw)."""
+        k = self.looks.get(obj.name, 0)
+        self.looks[obj.name] = k + 1
+        base = self.views[k % len(self.views)]
+        return View((base.azimuth + math.degrees(obj.yaw)) % 360.0, base.elevation)
+
+    def perceive(self, obj: SceneObject, world: MultiWorld, concept: Concept) -> Perceived:
+        """One look at ``obj`` in ``world`` (raises ``EstimateRefused``)."""
+        index = world.names.index(obj.name)
+        centre, radius = frame_of(world.scene.instances[index])  # where the scene says it is
+        view = self.next_view(obj)
+        seed = self.seed + 7919 * self.looks[obj.name]
+        try:
+            got = look(world.scene, world.world.model, world.world.data, index, concept, view,
+                       centre, radius, seed, self.segmenter, self.min_confidence,
+                       fixed_params(concept, obj.params))  # fmt: skip
+        except EstimateRefused as exc:
+            entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
+            self.account.append({"object": obj.name, **entry, "refused": str(exc)})
+            self._last_look[obj.name] = self.account[-1]
+            raise
+        self.account.append({"object": obj.name, **got.summary()})
+        self._last_look[obj.name] = self.account[-1]
+        self.last[obj.name] = got
+        return got
+
+    def last_look(self, name: str) -> dict[str, Any]:
+        """The account of the last look at object ``name`` ({} before the first)."""
+        return dict(self._last_look.get(name, {}))
+
+    def params(self, obj: SceneObject, world: MultiWorld) -> dict[str, Any]:
+        concept = world.scene.instances[world.names.index(obj.name)].concept
+        return dict(self.perceive(obj, world, concept).params)
+
+    def instance(self, obj: SceneObject, world: MultiWorld) -> Instance:
+        """A new look at ``obj``, as the agent's posed model of it (estimated joints)."""
+        concept = world.scene.instances[world.names.index(obj.name)].concept
+        return self.perceive(obj, world, concept).instance(concept)
