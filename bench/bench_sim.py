@@ -10,6 +10,7 @@ and lenient success per concept and task, and the failure reasons.
     python bench/bench_sim.py --smoke            # 1 category x 2 tasks x 1 episode (the tests)
     python bench/bench_sim.py --episodes 100 --categories CabinetDrawer DoorLeaf
     python bench/bench_sim.py --episodes 100 --workers 2   # the target run (2 processes)
+    python bench/bench_sim.py --engine sapien    # the same episodes on SAPIEN 3's PhysX (CPU)
 
 Episode i of every category and task has seed ``--seed + i``; where it runs (``--workers``)
 does not change its record.
@@ -53,6 +54,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--categories", nargs="+", default=None)
     ap.add_argument("--episodes", type=int, default=20, help="episodes per category and task")
     ap.add_argument("--hand", default="panda")
+    ap.add_argument(
+        "--engine",
+        choices=("mujoco", "sapien"),
+        default="mujoco",
+        help="the physics engine (sapien: the optional extra, PhysX on CPU)",
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
     ap.add_argument(
@@ -90,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     header = {
         "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
         "hand": args.hand,
+        "engine": args.engine,
         "episodes": episodes,
         "seed": args.seed,
         "workers": args.workers,
@@ -97,7 +105,9 @@ def main(argv: list[str] | None = None) -> int:
     }
     records: list[EpisodeRecord] = []
     for category in categories:  # the JSON rewritten after each: a long run keeps what it did
-        records += run_all((category,), episodes, args.hand, args.seed, args.workers)
+        records += run_all(
+            (category,), episodes, args.hand, args.seed, args.workers, args.engine
+        )
         write(out, header, records, time.perf_counter() - started)
     print_table(summarize(records))
     return 0
@@ -144,12 +154,17 @@ def write(out: Path, header: dict[str, Any], records: list[EpisodeRecord], wall:
 
 
 def run_all(
-    categories: tuple[str, ...], episodes: int, hand: str, seed: int, workers: int = 1
+    categories: tuple[str, ...],
+    episodes: int,
+    hand: str,
+    seed: int,
+    workers: int = 1,
+    engine: str = "mujoco",
 ) -> list[EpisodeRecord]:
     """Every (category, task, episode) through the runner (``workers`` processes), with a
     progress bar; records in the order asked."""
     jobs = [
-        (EpisodeConfig(c, t, hand=hand), seed + i)  # type: ignore[arg-type]
+        (EpisodeConfig(c, t, hand=hand, engine=engine), seed + i)  # type: ignore[arg-type]
         for c in categories
         for t in TASKS
         for i in range(episodes)
