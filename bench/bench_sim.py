@@ -127,6 +127,7 @@ def merge(parts: list[Path], out: Path) -> int:
     header = {
         "command": [d["command"] for d in loaded],
         "hand": loaded[0]["hand"],
+        "engine": loaded[0].get("engine", "mujoco"),
         "episodes": loaded[0]["episodes"],
         "seed": loaded[0]["seed"],
         "workers": sum(d.get("workers", 1) for d in loaded),
@@ -137,6 +138,8 @@ def merge(parts: list[Path], out: Path) -> int:
     from grace_dsl.sim import report
 
     title = f"flying Panda hand, oracle, {header['episodes']} episodes per task"
+    if header["engine"] != "mujoco":
+        title += f", {header['engine']}"
     print(report.write_bar_chart(report.summarize(records), out.with_suffix(".png"), title))
     return 0
 
