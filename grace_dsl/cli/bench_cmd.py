@@ -229,7 +229,12 @@ def _jobs(args: Any) -> list[tuple[Any, int]]:
     engine = getattr(args, "engine", "mujoco")
     _check_engine(engine, args.agent)
     base = EpisodeConfig(
-        concept="", agent=args.agent, hand=args.hand, mode=args.mode, scale=scale, engine=engine
+        concept="",
+        agent=args.agent,
+        hand=args.hand,
+        mode=args.mode,
+        scale=scale,
+        engine=engine,  # type: ignore[arg-type]  # checked: argparse's choices
     )
     return plan_episodes(categories, args.episodes, args.seed, base)
 

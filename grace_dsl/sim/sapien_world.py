@@ -129,12 +129,12 @@ class SapienWorld:
         links = {link.name: link for link in obj.links}
         damping = np.zeros(obj.dof)
         for joint in obj.active_joints:
-            spec = by_name[joint.name]
-            joint.armature = np.array([spec.armature], dtype=np.float32)
-            friction = FRICTION if balanced and spec.name in moved else spec.friction
+            source = by_name[joint.name]
+            joint.armature = np.array([source.armature], dtype=np.float32)
+            friction = FRICTION if balanced and source.name in moved else source.friction
             joint.set_drive_properties(0.0, friction / STICK_SPEED, friction, "force")
             joint.set_drive_velocity_target(np.zeros(1, dtype=np.float32))
-            damping[index[joint.name]] = spec.damping
+            damping[index[joint.name]] = source.damping
         if balanced:
             for name in _moved_links(exported, {j for j in moved if j in by_name}):
                 links[name].disable_gravity = True
