@@ -49,6 +49,7 @@ def test_the_urdf_collides_through_the_convex_pieces_and_can_leave_out_visuals(
 
 
 @needs_sapien
+@pytest.mark.slow  # the first export of a concept computes its convex pieces
 @pytest.mark.parametrize("concept", ["CabinetDrawer", "HingedCabinet"])
 def test_the_urdf_export_loads_in_a_physx_scene_with_its_joints_and_limits(
     lib: eac.Library, tmp_path: Path, concept: str
@@ -91,10 +92,10 @@ def test_the_sapien_hand_floats_in_place_and_opens_at_finger_speed(lib: eac.Libr
     assert world.hand.grasp_force == 70.0 and len(world.hand.fingers) == 2
     assert world.q("slide") == pytest.approx(0.1, abs=1e-6)
     world.set_fingers(0.08)
-    for _ in range(300):  # 0.6 s: 30 mm per finger at 0.1 m/s, not yet the 40 mm asked
+    for _ in range(100):  # 0.2 s: 20 mm per finger at 0.1 m/s, not yet the 40 mm asked
         world.step(away)
-    assert world.opening() == pytest.approx(0.06, abs=2e-3)
-    for _ in range(300):
+    assert world.opening() == pytest.approx(0.04, abs=3e-3)
+    for _ in range(500):
         world.step(away)
     assert world.opening() == pytest.approx(0.08, abs=1e-3)
     assert np.allclose(world.hand_pose(), away, atol=1e-3)  # weightless, held by its spring
