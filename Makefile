@@ -44,7 +44,8 @@ gallery: $(STAMP)
 	$(BIN)/eacc gallery -o docs/gallery
 
 # venv support and a C compiler (the compiler turns concepts into native code when one exists);
-# OSMesa for headless MuJoCo pictures (eacc show --png) and Chromium for the HTML viewer's tests.
+# OSMesa for headless MuJoCo pictures (eacc show --png) and Chromium for the HTML viewer's tests;
+# libX11, which SAPIEN's library links even when its physics runs alone (Chromium brings it too).
 system-deps:
 	@missing=""; \
 	if ! $(PYTHON) -c 'import ensurepip, venv' >/dev/null 2>&1 || ! command -v cc >/dev/null 2>&1; then \
@@ -54,6 +55,9 @@ system-deps:
 	  missing="$$missing libosmesa6"; \
 	fi; \
 	if ! command -v chromium >/dev/null 2>&1; then missing="$$missing chromium"; fi; \
+	if ! $(PYTHON) -c 'import ctypes.util as u, sys; sys.exit(not u.find_library("X11"))'; then \
+	  missing="$$missing libx11-6"; \
+	fi; \
 	if [ -n "$$missing" ]; then \
 	  if command -v apt-get >/dev/null 2>&1; then \
 	    echo "installing system packages:$$missing"; \
@@ -68,7 +72,7 @@ $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,sim,plan,learn,ray,vlm]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,sim,plan,learn,ray,vlm,sapien]'
 	@touch $(STAMP)
 
 clean:

@@ -10,6 +10,8 @@ and lenient success per concept and task, and the failure reasons.
     python bench/bench_sim.py --smoke            # 1 category x 2 tasks x 1 episode (the tests)
     python bench/bench_sim.py --episodes 100 --categories CabinetDrawer DoorLeaf
     python bench/bench_sim.py --episodes 100 --workers 2   # the target run (2 processes)
+    python bench/bench_sim.py --engine sapien    # the same episodes on SAPIEN 3's PhysX (CPU)
+    python bench/bench_sim.py --compare mujoco.json sapien.json   # the two side by side
 
 Episode i of every category and task has seed ``--seed + i``; where it runs (``--workers``)
 does not change its record.
@@ -53,6 +55,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--categories", nargs="+", default=None)
     ap.add_argument("--episodes", type=int, default=20, help="episodes per category and task")
     ap.add_argument("--hand", default="panda")
+    ap.add_argument(
+        "--engine",
+        choices=("mujoco", "sapien"),
+        default="mujoco",
+        help="the physics engine (sapien: the optional extra, PhysX on CPU)",
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
     ap.add_argument(
@@ -70,7 +78,16 @@ def main(argv: list[str] | None = None) -> int:
         metavar="JSON",
         help="no run: the records of these result files as one result (--out) and one table",
     )
+    ap.add_argument(
+        "--compare",
+        nargs=2,
+        type=Path,
+        metavar=("A", "B"),
+        help="no run: strict success of the episodes both result files hold, side by side",
+    )
     args = ap.parse_args(argv)
+    if args.compare:
+        return compare(*args.compare, args.out)
     if args.merge:
         return merge(args.merge, args.out or RESULTS)
     categories = tuple(args.categories or CATEGORIES)
@@ -90,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     header = {
         "command": " ".join(["python bench/bench_sim.py", *(argv or sys.argv[1:])]),
         "hand": args.hand,
+        "engine": args.engine,
         "episodes": episodes,
         "seed": args.seed,
         "workers": args.workers,
@@ -97,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     records: list[EpisodeRecord] = []
     for category in categories:  # the JSON rewritten after each: a long run keeps what it did
-        records += run_all((category,), episodes, args.hand, args.seed, args.workers)
+        records += run_all((category,), episodes, args.hand, args.seed, args.workers, args.engine)
         write(out, header, records, time.perf_counter() - started)
     print_table(summarize(records))
     return 0
@@ -117,6 +135,7 @@ def merge(parts: list[Path], out: Path) -> int:
     header = {
         "command": [d["command"] for d in loaded],
         "hand": loaded[0]["hand"],
+        "engine": loaded[0].get("engine", "mujoco"),
         "episodes": loaded[0]["episodes"],
         "seed": loaded[0]["seed"],
         "workers": sum(d.get("workers", 1) for d in loaded),
@@ -127,7 +146,66 @@ def merge(parts: list[Path], out: Path) -> int:
     from grace_dsl.sim import report
 
     title = f"flying Panda hand, oracle, {header['episodes']} episodes per task"
+    if header["engine"] != "mujoco":
+        title += f", {header['engine']}"
     print(report.write_bar_chart(report.summarize(records), out.with_suffix(".png"), title))
+    return 0
+
+
+def compare(a: Path, b: Path, out: Path | None) -> int:
+    """Strict and lenient success per (concept, task) over the episodes (config but the engine,
+    and seed) that both result files hold, and B minus A; the table printed, JSON to ``out``."""
+    from grace_dsl.sim.report import record_from_json
+
+    def load(path: Path) -> dict[tuple[str, str, int], EpisodeRecord]:
+        records = map(record_from_json, json.loads(path.read_text())["records"])
+        return {(r.config.concept, r.config.task, r.seed): r for r in records}
+
+    left, right = load(a), load(b)
+    common = [k for k in left if k in right]
+    groups: dict[tuple[str, str], list[tuple[str, str, int]]] = defaultdict(list)
+    for key in common:
+        groups[key[:2]].append(key)
+    rows = []
+    for (concept, task), keys in groups.items():
+        n = len(keys)
+        sa = sum(left[k].strict for k in keys) / n
+        sb = sum(right[k].strict for k in keys) / n
+        differ = [k[2] for k in keys if left[k].strict != right[k].strict]
+        rows.append(
+            {
+                "concept": concept,
+                "task": task,
+                "episodes": n,
+                "strict_a": sa,
+                "strict_b": sb,
+                "lenient_a": sum(left[k].lenient for k in keys) / n,
+                "lenient_b": sum(right[k].lenient for k in keys) / n,
+                "difference": sb - sa,
+                "seeds_that_differ": differ,
+            }
+        )
+    print(f"A = {a}, B = {b}")
+    print(f"{'concept':16} {'task':6} {'n':>4} {'A':>6} {'B':>6} {'B-A':>6}  seeds that differ")
+    for r in rows:
+        print(
+            f"{r['concept']:16} {r['task']:6} {r['episodes']:4d} {r['strict_a']:6.2f} "
+            f"{r['strict_b']:6.2f} {r['difference']:+6.2f}  {r['seeds_that_differ'] or ''}"
+        )
+    n = len(common)
+    both = [sum(side[k].strict for k in common) / max(n, 1) for side in (left, right)]
+    print(f"all: {n} episodes, strict A {both[0]:.3f}, B {both[1]:.3f}")
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        body = {
+            "a": str(a),
+            "b": str(b),
+            "episodes": n,
+            "strict_a": both[0],
+            "strict_b": both[1],
+            "rows": rows,
+        }
+        out.write_text(json.dumps(body, indent=1) + "\n")
     return 0
 
 
@@ -144,12 +222,17 @@ def write(out: Path, header: dict[str, Any], records: list[EpisodeRecord], wall:
 
 
 def run_all(
-    categories: tuple[str, ...], episodes: int, hand: str, seed: int, workers: int = 1
+    categories: tuple[str, ...],
+    episodes: int,
+    hand: str,
+    seed: int,
+    workers: int = 1,
+    engine: str = "mujoco",
 ) -> list[EpisodeRecord]:
     """Every (category, task, episode) through the runner (``workers`` processes), with a
     progress bar; records in the order asked."""
     jobs = [
-        (EpisodeConfig(c, t, hand=hand), seed + i)  # type: ignore[arg-type]
+        (EpisodeConfig(c, t, hand=hand, engine=engine), seed + i)  # type: ignore[arg-type]
         for c in categories
         for t in TASKS
         for i in range(episodes)

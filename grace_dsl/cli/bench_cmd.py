@@ -88,6 +88,12 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
         help="gripper: a flying Panda hand (default); arm: the whole Panda on a base",
     )
     p.add_argument("--hand", default="panda", help="a shipped hand or a hand file (panda)")
+    p.add_argument(
+        "--engine",
+        choices=("mujoco", "sapien"),
+        default="mujoco",
+        help="physics: mujoco (default) or sapien (SAPIEN 3's PhysX on CPU, the sapien extra)",
+    )
     p.add_argument("--scale", default="1,1", metavar="LO,HI", help="object size factor (1,1)")
     p.add_argument("--seed", type=int, default=0, help="the run's seed (0)")
     p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
@@ -223,7 +229,16 @@ def _jobs(args: Any) -> list[tuple[Any, int]]:
     _check_hand(args.hand)
     categories = tuple(args.categories or DEFAULT_CATEGORIES)
     _check_categories(categories)
-    base = EpisodeConfig(concept="", agent=args.agent, hand=args.hand, mode=args.mode, scale=scale)
+    engine = getattr(args, "engine", "mujoco")
+    _check_engine(engine, args.agent)
+    base = EpisodeConfig(
+        concept="",
+        agent=args.agent,
+        hand=args.hand,
+        mode=args.mode,
+        scale=scale,
+        engine=engine,  # type: ignore[arg-type]  # checked: argparse's choices
+    )
     return plan_episodes(categories, args.episodes, args.seed, base)
 
 
@@ -235,6 +250,18 @@ def _scale(text: str) -> tuple[float, float]:
     if not (0 < lo <= hi and math.isfinite(hi)):
         raise ParameterError(f"--scale needs 0 < LO <= HI, got {lo:g},{hi:g}")
     return lo, hi
+
+
+def _check_engine(engine: str, agent: str) -> None:
+    """SAPIEN drives the flying hand only, and only when its optional extra is installed."""
+    if engine == "mujoco":
+        return
+    if agent != "gripper":
+        raise ParameterError(f"--engine {engine} drives the flying hand: use --agent gripper")
+    from grace_dsl.sim.sapien_world import available
+
+    if not available():
+        raise ParameterError("--engine sapien needs SAPIEN 3: pip install -e '.[sapien]'")
 
 
 def _check_hand(hand: str) -> None:
@@ -265,6 +292,7 @@ def _settings(args: Any) -> dict[str, Any]:
         "mode": args.mode,
         "agent": args.agent,
         "hand": args.hand,
+        "engine": getattr(args, "engine", "mujoco"),
         "scale": list(_scale(args.scale)),
         "seed": args.seed,
         "workers": args.workers,

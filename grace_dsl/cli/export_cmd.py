@@ -10,6 +10,7 @@ earlier export that this one no longer writes are removed, since the export owns
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -192,10 +193,12 @@ def _summary(
     removed: list[Path],
 ) -> None:
     native, ext = (URDF_NATIVE, "obj") if fmt == "urdf" else (MJCF_NATIVE, "stl")
+    geoms = [g for link in model.links for g in link.geoms]
+    if fmt == "urdf":  # its collision elements: the convex pieces, as ``<piece>.collision``
+        geoms += [replace(g, name=f"{g.name}.collision") for x in model.links for g in x.collision]
     meshes = [
         str(target.parent / mesh_dir_name(target) / f"{geom_file_stem(g)}.{ext}")
-        for link in model.links
-        for g in link.geoms
+        for g in geoms
         if (g.native() or ("mesh",))[0] not in native
     ]
     if as_json:

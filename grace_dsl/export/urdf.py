@@ -3,12 +3,19 @@
 URDF has no initial joint state: the exported file describes the model at q = 0; the instance's
 joint values are only reported (``export_urdf`` logs nothing about them; callers set them in the
 simulator). Boxes, full cylinders and spheres are native; everything else is an OBJ mesh.
+
+Each link's ``<visual>`` elements are its pieces whole; its ``<collision>`` elements are the convex
+pieces (``ExportModel`` ``Link.collision``), since simulators collide a mesh as its convex hull;
+a model built without collision pieces collides its whole pieces. ``visual=False`` leaves the
+visual elements out: a simulator scene without a renderer (SAPIEN's PhysX system alone) refuses
+to load them.
 """
 
 from __future__ import annotations
 
 import logging
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -36,23 +43,28 @@ EFFORT, VELOCITY = 100.0, 2.0  # required by the URDF schema for limited joints;
 
 
 def export_urdf(
-    inst: Instance, path: str | Path | None = None, options: ExportOptions | None = None
+    inst: Instance,
+    path: str | Path | None = None,
+    options: ExportOptions | None = None,
+    visual: bool = True,
 ) -> str:
     """The URDF text of ``inst``; with ``path``, also write it and its meshes (``<stem>_meshes/``).
 
     Without a path the meshes are referenced (as if written next to ``model.urdf``) but not
-    written: pass a path for a loadable model whenever the concept has non-native shapes."""
-    return write_urdf(build_model(inst, options), path)
+    written: pass a path for a loadable model whenever the concept has non-native shapes.
+    ``visual=False``: collision elements only (see the module docstring)."""
+    return write_urdf(build_model(inst, options), path, visual)
 
 
-def write_urdf(model: ExportModel, path: str | Path | None = None) -> str:
+def write_urdf(model: ExportModel, path: str | Path | None = None, visual: bool = True) -> str:
     """The URDF text of an already built model (written to ``path`` when given)."""
     target = output_file(path, ".urdf") if path is not None else None
     relative = mesh_dir_name(target or Path("model.urdf"))
     mesh_dir = target.parent / relative if target is not None else None
-    if target is None and any(g.native() is None for link in model.links for g in link.geoms):
+    pieces = [g for link in model.links for g in (*link.geoms, *link.collision)]
+    if target is None and any(g.native() is None for g in pieces):
         log.warning("%s: meshes are referenced but not written (no path given)", model.name)
-    text = to_text(urdf_tree(model, mesh_dir, relative), _comment(model))
+    text = to_text(urdf_tree(model, mesh_dir, relative, visual), _comment(model))
     if target is not None:
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(text, encoding="utf-8")
@@ -67,7 +79,9 @@ def _comment(model: ExportModel) -> str:
     )
 
 
-def urdf_tree(model: ExportModel, mesh_dir: Path | None, relative: str) -> ET.Element:
+def urdf_tree(
+    model: ExportModel, mesh_dir: Path | None, relative: str, visual: bool = True
+) -> ET.Element:
     robot = ET.Element("robot", name=model.name)
     ET.SubElement(robot, "link", name="world")
     place = ET.SubElement(robot, "joint", name="world_joint", type="fixed")
@@ -75,7 +89,7 @@ def urdf_tree(model: ExportModel, mesh_dir: Path | None, relative: str) -> ET.El
     ET.SubElement(place, "child", link=model.root.name)
     _origin(place, model.pose)
     for link in model.links:
-        robot.append(_link(link, mesh_dir, relative))
+        robot.append(_link(link, mesh_dir, relative, visual))
     for joint in model.joints:
         robot.append(_joint(joint))
     return robot
@@ -85,16 +99,24 @@ def _origin(parent: ET.Element, pose: np.ndarray) -> None:
     ET.SubElement(parent, "origin", xyz=vec(pose[:3, 3]), rpy=vec(rpy(pose[:3, :3])))
 
 
-def _link(link: Link, mesh_dir: Path | None, relative: str) -> ET.Element:
+def _link(link: Link, mesh_dir: Path | None, relative: str, visual: bool = True) -> ET.Element:
     el = ET.Element("link", name=link.name)
     el.append(_inertial(link.inertial))
-    for geom in link.geoms:
-        shape = _geometry(geom, mesh_dir, relative)
-        for tag in ("visual", "collision"):
-            g = ET.SubElement(el, tag, name=geom.name)
-            _origin(g, geom.pose)
-            g.append(shape)
+    if visual:
+        for geom in link.geoms:
+            _element(el, "visual", geom, mesh_dir, relative)
+    if not link.collision:  # a model built without collision pieces collides its whole pieces
+        for geom in link.geoms:
+            _element(el, "collision", geom, mesh_dir, relative)
+    for geom in link.collision:  # convex: a simulator collides a mesh as its hull
+        _element(el, "collision", replace(geom, name=f"{geom.name}.collision"), mesh_dir, relative)
     return el
+
+
+def _element(el: ET.Element, tag: str, geom: Geom, mesh_dir: Path | None, relative: str) -> None:
+    g = ET.SubElement(el, tag, name=geom.name)
+    _origin(g, geom.pose)
+    g.append(_geometry(geom, mesh_dir, relative))
 
 
 def _inertial(i: Inertial) -> ET.Element:

@@ -24,6 +24,7 @@ from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Library
 from grace_dsl.runtime.manipulation import CLEARANCE, Option
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
+from grace_dsl.sim.engines import ENGINES, HandWorld, build_world
 from grace_dsl.sim.hand_motion import follower_for
 from grace_dsl.sim.model import zup_pose
 from grace_dsl.sim.protocol import (
@@ -101,9 +102,13 @@ def episode_and_world(
     if not usable:
         why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons) or "no option"
         return _early(config, seed, task, "no_feasible_grasp", why, started, draw, inst), None
-    outcome = execute(inst, task, usable[0], gripper, config.max_seconds, trace_every)
+    if config.engine != "mujoco" and trace_every:
+        raise ParameterError("a replay traces a MuJoCo world: run it with engine='mujoco'")
+    outcome = execute(
+        inst, task, usable[0], gripper, config.max_seconds, trace_every, engine=config.engine
+    )
     record = outcome_record(config, seed, task, draw, inst, outcome, usable[0], started)
-    return record, outcome.world
+    return record, outcome.world if isinstance(outcome.world, World) else None
 
 
 def outcome_record(
@@ -151,7 +156,7 @@ class Outcome:
     slipped: bool  # the hand lost the part while following
     unstable: bool = False
     detail: str = ""
-    world: World | None = field(default=None, compare=False, repr=False)
+    world: HandWorld | None = field(default=None, compare=False, repr=False)
 
 
 def execute(
@@ -163,14 +168,16 @@ def execute(
     trace_every: int = 0,
     *,
     goal: float | None = None,
-    world: World | None = None,
+    world: HandWorld | None = None,
+    engine: str = "mujoco",
 ) -> Outcome:
     """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds.
 
     ``goal``: a joint value to stop at instead of the task's default (``FOLLOW_TO`` of the range
     for an open, pressed past the stop for a close). ``world``: act in this world (several
     objects, joint states kept between calls: ``grace_dsl.sim.multi``) with the hand placed at
-    the pre-grasp, instead of a new world of ``inst`` alone; ``budget`` counts from the call."""
+    the pre-grasp, instead of a new world of ``inst`` alone; ``budget`` counts from the call.
+    ``engine``: the physics of a new world (``grace_dsl.sim.engines``)."""
     grasp = option.hand_pose if option.hand_pose is not None else option.pose
     assert grasp is not None
     pinch = option.mode == "pinch"
@@ -186,7 +193,7 @@ def execute(
     start = grasp.copy()
     start[:3, 3] -= grasp[:3, 2] * (gripper.approach_distance + BACK_OFF)
     if world is None:
-        world = World.build(inst, gripper, start, driven=task.joint)
+        world = build_world(engine, inst, gripper, start, driven=task.joint)
     else:
         world.place_hand(start)
     world.trace_every = trace_every
@@ -230,15 +237,13 @@ def execute(
     return _finish(world, task, arrived, slipped, "", hold=hold)
 
 
-def _still(world: World, joint: str, hold: np.ndarray) -> None:
+def _still(world: HandWorld, joint: str, hold: np.ndarray) -> None:
     """Hold at ``hold`` until ``joint`` stops (at most ``STILL_TIME``): the hand and the part
     it grips swing on the hand's spring, and a part let go while moving coasts on."""
-    adr = world.joint_qpos[joint]
-    dof = int(world.model.jnt_dofadr[int(np.flatnonzero(world.model.jnt_qposadr == adr)[0])])
     end = world.time + STILL_TIME
     while world.time < end and not world.unstable():
-        _run(world, CONTROL_EVERY * world.model.opt.timestep * 5, lambda: hold)
-        if abs(float(world.data.qvel[dof])) < STILL_SPEED:
+        _run(world, CONTROL_EVERY * world.timestep * 5, lambda: hold)
+        if abs(world.qdot(joint)) < STILL_SPEED:
             return
 
 
@@ -298,7 +303,7 @@ def _path_of(
 
 
 def _follow(
-    world: World,
+    world: HandWorld,
     task: TaskAction,
     follower: PathFollower,
     lo: float,
@@ -315,7 +320,7 @@ def _follow(
     off_since: float | None = None
     q_ref = world.q(task.joint)
     target = follower.pose_at(q_ref)
-    tick = CONTROL_EVERY * world.model.opt.timestep
+    tick = CONTROL_EVERY * world.timestep
     steps = 0
     while world.time < end:
         q = world.q(task.joint)
@@ -339,7 +344,7 @@ def _follow(
 
 
 def _finish(
-    world: World,
+    world: HandWorld,
     task: TaskAction,
     arrived: bool,
     slipped: bool,
@@ -370,7 +375,7 @@ def _finish(
     )
 
 
-def _run(world: World, seconds: float, target: Callable[[], np.ndarray]) -> None:
+def _run(world: HandWorld, seconds: float, target: Callable[[], np.ndarray]) -> None:
     end = world.time + seconds
     goal = target()
     steps = 0
@@ -445,10 +450,15 @@ def _check_config(config: EpisodeConfig) -> None:
             f"agent {config.agent!r} is unknown: run_episode drives a flying hand "
             "(agent='gripper') or the full Panda (agent='arm')"
         )
-    if config.mode != "oracle" or config.engine != "mujoco":
+    if config.mode != "oracle" or config.engine not in ENGINES:
         raise ParameterError(
-            f"mode {config.mode!r} on engine {config.engine!r}: only mode='oracle' on "
-            "engine='mujoco' runs today"
+            f"mode {config.mode!r} on engine {config.engine!r}: only mode='oracle' runs today, "
+            f"on an engine of {ENGINES}"
+        )
+    if config.engine != "mujoco" and config.agent != "gripper":
+        raise ParameterError(
+            f"engine {config.engine!r} drives the flying hand (agent='gripper'); the full "
+            "Panda (agent='arm') runs on engine='mujoco'"
         )
     if config.task not in ("open", "close"):
         raise ParameterError(f"task must be 'open' or 'close', not {config.task!r}")

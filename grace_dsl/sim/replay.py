@@ -72,6 +72,8 @@ def render_world(
 
 def failure_frame(record: EpisodeRecord, path: Path) -> None:
     """``report.FrameRenderer``: the episode of ``record`` run again, its last frame drawn."""
+    if record.config.engine != "mujoco":
+        raise ReplayError(f"pictures are drawn in MuJoCo, not {record.config.engine!r}")
     again, world = episode_and_world(record.config, record.seed)
     if world is None:
         raise ReplayError(f"the hand never moved ({again.reason}: {again.detail})")

@@ -137,6 +137,16 @@ class World:
         """The measured value of a concept joint."""
         return float(self.data.qpos[self.joint_qpos[joint]])
 
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    def qdot(self, joint: str) -> float:
+        """The measured velocity of a concept joint."""
+        adr = self.joint_qpos[joint]
+        jnt = int(np.flatnonzero(self.model.jnt_qposadr == adr)[0])
+        return float(self.data.qvel[int(self.model.jnt_dofadr[jnt])])
+
     def hand_pose(self) -> np.ndarray:
         """The hand's measured world pose (the gripper frame)."""
         pose = np.eye(4)
