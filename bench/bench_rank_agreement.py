@@ -348,26 +348,28 @@ def merge(parts: list[Path], out: Path) -> int:
 
 
 def time_rank(args: argparse.Namespace) -> int:
-    """CPU time per ``inst.rank`` call over every action of the library (the Panda, default
-    parameters, front facing the robot, 32 samples, best of 3 passes). Uses only what the
-    runtime had before hands were described, so it times older checkouts too."""
+    """CPU time per ``inst.rank`` call over every action of the library (the Panda, or each of
+    ``--hands``; default parameters, front facing the robot, 32 samples, best of 3 passes).
+    Uses only what the runtime had before hands were described (with ``--hands``: before
+    the contact search), so it times older checkouts too."""
     lib = eac.load_library()
     names = args.concepts or (list(SMOKE) if args.smoke else verifiable(lib))
     insts = [lib[n].instantiate(pose=facing()) for n in names]
-    calls = [(inst, a) for inst in insts for a in inst.action_names]
-    hand = Gripper.panda()
-    for inst, a in calls:  # warm: native kernels loaded, sweeps cached
+    hands = [Gripper.load(h) for h in args.hands] if args.hands else [Gripper.panda()]
+    calls = [(inst, a, h) for inst in insts for a in inst.action_names for h in hands]
+    for inst, a, hand in calls:  # warm: native kernels loaded, sweeps cached
         inst.rank(a, hand)
     passes = []
     for _ in range(3):
         t0 = time.process_time()
-        for inst, a in calls:
+        for inst, a, hand in calls:
             inst.rank(a, hand)
         passes.append((time.process_time() - t0) / len(calls))
     ms = round(1e3 * min(passes), 2)
     print(f"{len(calls)} rank calls: {ms} ms CPU per call (best of 3)")
     out = {
         "command": " ".join(["bench/bench_rank_agreement.py", *sys.argv[1:]]),
+        "hands": [h.name for h in hands],
         "rank_calls": len(calls),
         "ms_cpu_per_rank": ms,
     }

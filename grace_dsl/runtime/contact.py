@@ -3,11 +3,13 @@
 A grasp pose says where the contact is: for a pinch or a hook the hand's own frame, for a push the
 touched point with +z into the material. A hand may push with its fingertips (its frame is the
 grasp's), with the side of a closed finger (a face of the pads pressed on the point, the hand's
-approach as close to its home approach as the face allows) or with its palm (the palm's front face
-on the point). ``hand_poses`` turns grasp poses into hand poses for each; ``HandSweep`` samples the
-hand's boxes as they come in (backed off along the contact's -z, then fingers closing) and hold;
-``Scene`` evaluates the part's signed distance at several joint states in one pass per shape, so
-a whole follow path costs about as much as one query.
+approach as close to its home approach as the face allows), with its palm (the palm's front face
+on the point) or, for a hand that cannot turn a face onto the part, with the closed fingers'
+edge or corner nearest it, the hand at its home orientation (``edge``). ``hand_poses`` turns
+grasp poses into hand poses for each; ``HandSweep`` samples the hand's boxes as they come in
+(backed off along the contact's -z, then fingers closing) and hold; ``Scene`` evaluates the
+part's signed distance at several joint states in one pass per shape, so a whole follow path
+costs about as much as one query.
 
 Sampling the hand's faces misses a part thinner than the sample spacing that slices into a box
 between two samples (a 6 mm wall plate across a palm sampled every 10 mm). So the check also runs
@@ -60,11 +62,16 @@ def hand_poses(
     """Hand poses (m, 4, 4) for grasp poses (n, 4, 4) touched by ``contact``, and for each the
     index of its grasp (a side push tries every side face, so m = 4 n). A pinch or a hook takes
     the grasp's orientation; a push only fixes the direction it pushes in, and the hand spins
-    about it to the orientation nearest ``home``."""
+    about it to the orientation nearest ``home``; an edge push keeps ``home``."""
     n = len(grasps)
     if contact in ("pads", "fingers"):
         return grasps, np.arange(n)
     normals = grasps[:, :3, 2]
+    if contact == "edge":  # the hand as it is at home, touching with the fingers' support point
+        rot = np.broadcast_to(home, (n, 3, 3))
+        return _placed_each(rot, grasps[:, :3, 3], edge_points(gripper, normals @ home)), np.arange(
+            n
+        )
     if contact in ("tip", "palm"):  # a push does not care how the hand spins about it
         point = palm_point(gripper) if contact == "palm" else np.zeros(3)
         y = _orthogonal(home[:, 1], normals, grasps[:, :3, 1])
@@ -83,6 +90,16 @@ def hand_poses(
         poses.append(_placed(rot, grasps[:, :3, 3], side_point(gripper, face)))
         index.append(np.arange(n))
     return np.concatenate(poses), np.concatenate(index)
+
+
+def edge_points(gripper: Gripper, normals: np.ndarray) -> np.ndarray:
+    """The point of the closed fingers (one block: x within half the pad's width, y within the
+    pad's thickness, z from -finger_length to 0) farthest along each hand-frame direction
+    (n, 3): a corner, the middle of an edge or of a face. Put on the contact, the whole block
+    stays on the near side of the part's tangent plane there."""
+    half = np.array([gripper.finger_width / 2, gripper.finger_thickness, gripper.finger_length / 2])
+    sign = np.where(np.abs(normals) < 1e-6, 0.0, np.sign(normals))
+    return sign * half + np.array([0.0, 0.0, -gripper.finger_length / 2])
 
 
 def side_point(gripper: Gripper, face: tuple[float, float, float]) -> np.ndarray:
@@ -109,6 +126,15 @@ def _orthogonal(want: np.ndarray, normals: np.ndarray, fallback: np.ndarray) -> 
     bad = norm < 1e-6
     v[bad] = fallback[bad] - np.sum(fallback[bad] * normals[bad], axis=1)[:, None] * normals[bad]
     return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+def _placed_each(rot: np.ndarray, points: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """Poses with rotations ``rot`` that put each hand point ``local[i]`` on ``points[i]``."""
+    out = np.zeros((len(rot), 4, 4))
+    out[:, :3, :3] = rot
+    out[:, :3, 3] = points - np.einsum("nij,nj->ni", rot, local)
+    out[:, 3, 3] = 1.0
+    return out
 
 
 def _placed(rot: np.ndarray, points: np.ndarray, local: np.ndarray) -> np.ndarray:

@@ -27,7 +27,11 @@ from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.inputs import as_array, as_number
 from grace_dsl.tolerances import DEGENERATE, RANGE_SLACK
 
-PUSHES = ("tip", "side", "palm")  # what a hand may push with: fingertips, a finger's side, palm
+# What a hand may push with: fingertips, a finger's side, palm, and the closed fingers' edge or
+# corner nearest the part with the hand at its home orientation (for a hand that cannot turn
+# to put a face on the part: only when its description lists it).
+PUSHES = ("tip", "side", "palm", "edge")
+DEFAULT_PUSHES = ("tip", "side", "palm")
 
 
 @dataclass(frozen=True)
@@ -104,7 +108,7 @@ class Gripper:
     can_turn: bool = True  # the hand may turn while it acts (a twist on a knob's axis needs it)
     fingers: tuple[HandBox, ...] = ()  # the +y finger's blocks besides its pad (closed hand)
     palm: tuple[HandBox, ...] = ()  # boxes fixed to the hand
-    pushes: tuple[str, ...] = PUSHES  # what it may push with, of those its geometry has
+    pushes: tuple[str, ...] = DEFAULT_PUSHES  # what it may push with, of those it has
     approach_distance: float = 0.08  # metres the hand starts back from a grasp, along -z
     doc: str = field(default="", compare=False)
 
@@ -228,7 +232,7 @@ class Gripper:
     def push_modes(self) -> tuple[str, ...]:
         """What this hand can push with: the fingertips and a finger's side (it has pads), the
         palm (it has one), of those its description allows."""
-        have = {"tip", "side"} | ({"palm"} if self.palm else set())
+        have = {"tip", "side", "edge"} | ({"palm"} if self.palm else set())
         return tuple(p for p in PUSHES if p in self.pushes and p in have)
 
     # -- orientation

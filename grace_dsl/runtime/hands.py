@@ -20,7 +20,7 @@ from typing import Any
 
 from grace_dsl.runtime.concept import suggest
 from grace_dsl.runtime.errors import ParameterError
-from grace_dsl.runtime.gripper import PUSHES, Gripper, HandBox
+from grace_dsl.runtime.gripper import DEFAULT_PUSHES, PUSHES, Gripper, HandBox
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -175,7 +175,7 @@ class _Reader:
         size = self.lengths(pad["size"], "pad.size", 3)
         orient = self.table(data, "orientation")
         self.known(orient, ORIENTATION_KEYS, "orientation")
-        pushes = data.get("pushes", list(PUSHES))
+        pushes = data.get("pushes", list(DEFAULT_PUSHES))
         if not isinstance(pushes, list) or not all(p in PUSHES for p in pushes):
             raise self.fail("pushes", f"a list of {', '.join(PUSHES)}, got {pushes!r}")
         can_close = self.flag(data, "can_close", True)

@@ -25,7 +25,10 @@ checks all of it over the grasp's free-parameter range (and spins, for symmetric
 A push may be made with the fingertips, the side of a closed finger or the palm (``contacts``);
 the first of those that works is the option's ``contact``. Options are ordered feasible first,
 then pinch, hook, push/press, then by rotation. Among poses whose rotation is within ``TIE`` of the
-best, the one nearest the grasp's default free parameters wins (the default is always tried).
+best, the one nearest the grasp's default free parameters wins (the default is always tried). When
+the geometry fails at the best ``GEOMETRY_TRIES`` poses, ``SEARCH_TRIES`` more, spread over the
+free parameters (and spins) away from those tried, are checked, nearest the default first: a
+bounded, deterministic search for a contact where the hand fits.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ from grace_dsl.runtime.kinematics import Kinematics
 from grace_dsl.runtime.masks import has_masks, present
 from grace_dsl.runtime.sampling import spread
 from grace_dsl.runtime.specs import ActionSpec
-from grace_dsl.runtime.symmetry import HAND_HOME, spin_about
+from grace_dsl.runtime.symmetry import HAND_HOME, spin_about, spin_to_reference
 from grace_dsl.tolerances import RANGE_SLACK
 
 if TYPE_CHECKING:
@@ -64,6 +67,11 @@ PENETRATION = CLEAR  # m a box may enter the part (as eacc verify allows the pad
 CLEARANCE = 0.01  # m a pinch opens beyond its width on each side while coming in
 PATH_STEPS = 6  # joint values along a follow path checked for geometry
 GEOMETRY_TRIES = 2  # candidate poses per contact whose geometry is checked, best first
+# When those fail, the contact search: this many more poses spread over the free parameters
+# (farthest first from those already tried), tried in order of preference. It finds a contact
+# away from the default (a push near a front's top edge, where the palm clears the carcass).
+SEARCH_TRIES = 6
+EXTRA_DIMS = 3  # the search adds the corners and midpoints of a box of at most this many
 TURN_SLACK = math.radians(5.0)  # how far a path may turn a hand whose wrist cannot turn
 CONTACTS = {"pinch": ("pads",), "hook": ("fingers",)}  # push/press: the hand's push modes
 
@@ -170,14 +178,15 @@ def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
     g = inst.concept.grasps[name]
     mode = g.mode
     hand = _hand_reasons(inst, name, mode, gripper)
-    poses, free, dist = _poses(inst, name, samples, ctx.reference)
+    cands = _poses(inst, name, samples, ctx.reference)
+    poses, free = cands.poses, cands.free
     force_ok, first_why = _contacts(inst, ctx.action, mode, poses, gripper)
     contacts = CONTACTS.get(mode, gripper.push_modes)
     if not contacts:
         hand.append(f"{gripper.name} has nothing to {mode} with")
     verdicts: list[_Verdict] = []
     for c in contacts:  # the first contact that works is the option's
-        verdicts.append(_Verdict.judge(ctx, name, mode, c, poses, force_ok, dist, not hand))
+        verdicts.append(_Verdict.judge(ctx, name, mode, c, cands, force_ok, not hand))
         if verdicts[-1].feasible or hand:
             break
     best = next((v for v in verdicts if v.feasible), verdicts[0] if verdicts else None)
@@ -230,18 +239,21 @@ class _Verdict:
         name: str,
         mode: str,
         contact: str,
-        grasps: np.ndarray,
+        cands: _Poses,
         force_ok: np.ndarray,
-        dist: np.ndarray,
         geometry: bool = True,
     ) -> _Verdict:
         gripper = ctx.gripper
+        grasps, dist = cands.poses, cands.dist
         hands, index = hand_poses(gripper, contact, grasps, ctx.home)
         rotation = rotation_from(ctx.home, hands[:, :3, :3])
         tilt, turn = gripper.orientation_error(hands[:, :3, :3])
         oriented = gripper.allows(tilt, turn)
         usable = force_ok[index] & oriented
-        order = _preference(rotation, dist[index], usable)
+        # the search's own corner poses wait for the search; the rest go first, best first
+        pool = _preference(rotation, dist[index], usable)
+        order = _preference(rotation, dist[index], usable & ~cands.extra[index])
+        order = order if len(order) else pool[:1]
 
         def verdict(k: int, ok: bool, reason: str) -> _Verdict:
             return _Verdict(
@@ -263,12 +275,38 @@ class _Verdict:
             return verdict(int(order[0]), False, "")
         width = ctx.inst.grasp_width(name) if mode == "pinch" else None
         first_reason = ""
-        for k in order[:GEOMETRY_TRIES]:
+        tried = [int(k) for k in order[:GEOMETRY_TRIES]]
+        # where each hand pose lies for the search: its grasp's free parameters, and which
+        # face of the fingers pushes (a side push tries four per grasp, 1 apart)
+        face = (np.arange(len(index)) // len(grasps))[:, None]
+        coords = np.hstack([cands.unit[index], face])
+        for k in [*tried, *_search(pool, tried, coords)]:
             reason = _geometry(ctx, name, mode, contact, hands[k], grasps[index[k]], width)
             if reason is None:
                 return verdict(k, True, "")
             first_reason = first_reason or reason
         return verdict(int(order[0]), False, first_reason)
+
+
+def _search(order: np.ndarray, tried: list[int], coords: np.ndarray) -> list[int]:
+    """The contact search: up to ``SEARCH_TRIES`` more of the usable poses ``order`` (best
+    first), picked farthest first from those tried in the free parameters' unit box (each
+    pick the one whose nearest tried or picked pose is farthest; ties to the preferred), then
+    returned in order of preference. Deterministic: no random choice."""
+    done = set(tried)
+    rest = [int(k) for k in order if int(k) not in done]
+    if not rest or not tried:
+        return []
+    points = coords[rest]
+    near = np.min(np.linalg.norm(points[:, None, :] - coords[tried][None, :, :], axis=2), axis=1)
+    picked: list[int] = []
+    for _ in range(min(SEARCH_TRIES, len(rest))):
+        j = int(np.argmax(near))  # the first of equals: the preferred
+        if near[j] <= 1e-9:  # every remaining pose sits on one already tried
+            break
+        picked.append(j)
+        near = np.minimum(near, np.linalg.norm(points - points[j], axis=1))
+    return [rest[j] for j in sorted(picked)]
 
 
 def _preference(rotation: np.ndarray, dist: np.ndarray, usable: np.ndarray) -> np.ndarray:
@@ -312,31 +350,86 @@ def _hand_reasons(inst: Instance, name: str, mode: str, gripper: Gripper) -> lis
     return reasons
 
 
-def _poses(
-    inst: Instance, name: str, samples: int, reference: Any
-) -> tuple[np.ndarray, list[dict[str, float]], np.ndarray]:
-    """Poses over the free-parameter box and at the default (last), for grasps symmetric about
-    an axis that is not the approach over spins as well (the spin changes where the hand comes
-    from); with each its free parameters and its distance from the default (in range widths)."""
+@dataclass(frozen=True)
+class _Poses:
+    """The candidate grasp poses of one grasp family, row by row with their free parameters,
+    distance from the default (in range widths), place in the unit box of free parameters (and
+    spin: a half turn is 1 apart) and whether the row is one of the box's corners and midpoints
+    only the contact search tries."""
+
+    poses: np.ndarray
+    free: list[dict[str, float]]
+    dist: np.ndarray
+    unit: np.ndarray
+    extra: np.ndarray
+
+
+def _poses(inst: Instance, name: str, samples: int, reference: Any) -> _Poses:
+    """Poses over the free-parameter box and at the default, then the box's corners and
+    midpoints for the search (at most ``EXTRA_DIMS`` free parameters); for grasps symmetric
+    about an axis that is not the approach over spins as well (the spin changes where the hand
+    comes from)."""
     ranges = inst.grasp_range(name)
     lo, hi, default = Kinematics.of(inst).grasp_range(name)
     values = np.vstack([spread(list(ranges.values()), samples), default[None, :]])
-    poses = np.concatenate(
-        [
-            inst.grasps(name, samples, reference=reference),
-            inst.grasp(name, reference=reference)[None],
-        ]
-    )
-    free = [dict(zip(ranges, map(float, row))) for row in values]
     span = np.where(hi > lo, hi - lo, 1.0)
+    unit = (values - lo) / span
+    ends = _box_points(unit, hi > lo)
+    poses = [
+        inst.grasps(name, samples, reference=reference),
+        inst.grasp(name, reference=reference)[None],
+    ]
+    if len(ends):
+        at = lo + ends * span
+        poses.append(_grasps_at(inst, name, ends, at, reference))
+        values, unit = np.vstack([values, at]), np.vstack([unit, ends])
+    poses_ = np.concatenate(poses)
+    extra = np.arange(len(values)) > samples
+    free = [dict(zip(ranges, map(float, row))) for row in values]
     dist = np.abs((values - default) / span).sum(axis=1)
     g = inst.concept.grasps[name]
     if not g.symmetric or g.approach_symmetric:
-        return poses, free, dist
+        return _Poses(poses_, free, dist, unit, extra)
     axes = np.asarray(inst.concept.function("grasp_axis", name).batch(inst.p, values))
     spins = np.linspace(0.0, 2 * math.pi, SPIN_STEPS, endpoint=False)
-    spun = [spin_about(poses, axes.reshape(-1, 3), s) for s in spins]
-    return np.concatenate(spun), free * SPIN_STEPS, np.tile(dist, SPIN_STEPS)
+    spun = [spin_about(poses_, axes.reshape(-1, 3), s) for s in spins]
+    # the spin as a point on a circle of diameter 1: opposite spins 1 apart
+    turn = np.repeat(np.stack([np.cos(spins), np.sin(spins)], axis=1) / 2, len(values), 0)
+    return _Poses(
+        np.concatenate(spun),
+        free * SPIN_STEPS,
+        np.tile(dist, SPIN_STEPS),
+        np.hstack([np.tile(unit, (SPIN_STEPS, 1)), turn]),
+        np.tile(extra, SPIN_STEPS),
+    )
+
+
+def _grasps_at(
+    inst: Instance, name: str, unit: np.ndarray, values: np.ndarray, reference: Any
+) -> np.ndarray:
+    """World grasp poses at points ``unit`` of the free-parameter box (``values`` the same
+    points in the parameters' units), spun as ``inst.grasps`` spins symmetric grasps."""
+    fn = inst.concept.function("grasps_world", name)
+    poses = np.ascontiguousarray(fn.batch(inst.p, inst.q, unit, inst.pose[:3]), float)
+    poses = poses.reshape(len(unit), 4, 4)
+    if inst.concept.grasps[name].symmetric:
+        axes = inst.concept.function("grasp_axis", name).batch(inst.p, values)
+        ref = None if reference is None else np.asarray(reference, float)[:3, :3]
+        poses = spin_to_reference(poses, np.asarray(axes).reshape(-1, 3), ref)
+    return poses
+
+
+def _box_points(unit: np.ndarray, moves: np.ndarray) -> np.ndarray:
+    """The corners and midpoints of the free parameters' unit box ({0, 1/2, 1} along each
+    parameter whose range is not a point) not already among ``unit``'s rows: where a feasible
+    contact often lies (near an edge of the face) and a spread of a few samples misses."""
+    d = unit.shape[1]
+    if d == 0 or d > EXTRA_DIMS:
+        return np.zeros((0, d))
+    axes = [np.array([0.0, 0.5, 1.0]) if m else unit[-1:, i] for i, m in enumerate(moves)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
+    near = np.min(np.abs(grid[:, None, :] - unit[None, :, :]).max(axis=2), axis=1)
+    return grid[near > 1e-6]
 
 
 def _contacts(

@@ -42,7 +42,7 @@ def test_batched_forces_judge_every_pose_as_one_at_a_time(lib: eac.Library, name
                 spec = state._action_spec(action)
                 for grasp in c.grasps:
                     mode = c.grasps[grasp].mode
-                    poses, _, _ = _poses(state, grasp, 6, None)
+                    poses = _poses(state, grasp, 6, None).poses
                     ok, first = _contacts(state, spec, mode, poses, hand)
                     one = [_contact(state, spec, mode, p, hand) for p in poses]
                     assert ok.tolist() == [w is None for w in one], (name, action, grasp)
