@@ -55,7 +55,10 @@ REASONS = (
     "timeout",
     "unstable",
     "unreachable_target",
+    "ik_failure",  # the arm: no plan from any base placement (``ArmExecutor``)
 )
+#: Reasons after which another attempt cannot do better: the step stops there.
+FINAL = ("no_feasible_grasp", "unreachable_target", "ik_failure")
 
 
 class ParamSource(Protocol):
@@ -87,6 +90,9 @@ class Attempt:
     reason: str = ""  # one of REASONS
     detail: str = ""  # a sentence for a person
     sim_seconds: float = 0.0
+    base: tuple[float, ...] = ()  # the arm's base (x, y, z, yaw) it acted from; () for the hand
+    arm_before: tuple[float, ...] = ()  # the arm's joint angles before and after (the arm only)
+    arm_after: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -159,8 +165,12 @@ class Executor:
         self.seconds = seconds
         self.objects = {o.name: o for o in scene.objects}
         truth = [(o.name, self._instance(o, o.params)) for o in scene.objects]
-        self.world = MultiWorld(truth, self.gripper, camera=camera)
+        self.world = self._world(truth, camera)
         self._limits = {name: inst.joint_limits() for name, inst in truth}
+
+    def _world(self, truth: list[tuple[str, Instance]], camera: Camera | None) -> Any:
+        """The physical world the agent acts in: the flying hand's (``ArmExecutor``: the arm's)."""
+        return MultiWorld(truth, self.gripper, camera=camera)
 
     def _instance(self, obj: SceneObject, params: Mapping[str, Any]) -> Instance:
         try:
@@ -239,7 +249,7 @@ class Executor:
         for _ in range(self.max_attempts):
             attempt = self._attempt(sub, sign, tried)
             attempts.append(attempt)
-            if attempt.verified or attempt.reason in ("no_feasible_grasp", "unreachable_target"):
+            if attempt.verified or attempt.reason in FINAL:
                 break
         q_end = self.world.q(sub.object, sub.joint)
         return StepResult(index, sub, tuple(attempts), q_start, q_end, attempts[-1].verified)
