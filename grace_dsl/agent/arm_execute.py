@@ -105,7 +105,9 @@ class ArmExecutor(Executor):
         try:
             plan = self._plan(sub, inst, goal, sign, tried)
         except NoGraspError as exc:
-            return Attempt("", q0, q0, goal, False, "no_feasible_grasp", str(exc), 0.0, (), arm, arm)
+            return Attempt(
+                "", q0, q0, goal, False, "no_feasible_grasp", str(exc), 0.0, (), arm, arm
+            )
         except GraceError as exc:
             return Attempt("", q0, q0, goal, False, "ik_failure", str(exc), 0.0, (), arm, arm)
         option = plan.choice.option
@@ -178,15 +180,19 @@ def arm_aim(
     return goal
 
 
-def stand_beside(
-    robot: Robot, inst: Instance, action: str, others: list[Instance]
-) -> np.ndarray:
+def stand_beside(robot: Robot, inst: Instance, action: str, others: list[Instance]) -> np.ndarray:
     """The base's world pose for ``action`` on ``inst``: ``PLACE_REACH`` in front of the
     action's grasps (along the object's front, concept +z, flattened onto the floor), their
     height less ``placement.HEIGHT``, facing them; stepped back while the home posture would
     touch the object or any of ``others``."""
     from grace_dsl.robot.collision import collision_scene
-    from grace_dsl.robot.placement import HEIGHT, MAX_STEPS_BACK, STEP_BACK, _grasp_centre, base_pose
+    from grace_dsl.robot.placement import (
+        HEIGHT,
+        MAX_STEPS_BACK,
+        STEP_BACK,
+        _grasp_centre,
+        base_pose,
+    )
 
     centre = _grasp_centre(inst, action)
     front = np.asarray(inst.pose[:3, 2], float).copy()
