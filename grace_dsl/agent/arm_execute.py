@@ -17,9 +17,10 @@ bounded retries) with the arm of ``grace_dsl.sim.arm`` in a room of several obje
 3. the world teleports the base there (the drive between objects is not simulated) and executes
    the plan on the persistent world, so what earlier steps left is what this one finds.
 
-A planning failure is ``ik_failure`` (no grasp reachable: ``no_feasible_grasp``) and ends the
-sub-task: the planner has already tried every option not yet executed from every placement. An
-executed attempt that leaves the condition unmet has the flying hand's reasons (``collision``
+A planning failure is ``ik_failure`` (no grasp posture reachable, or none from which the action
+can be tracked; ``no_feasible_grasp`` when ``inst.rank`` finds no option for the hand) and ends
+the sub-task: the planner has already tried every option not yet executed from every placement.
+An executed attempt that leaves the condition unmet has the flying hand's reasons (``collision``
 when the arm was stopped on its way in, ``slip``, ``timeout``, ...) and the next attempt plans
 with the next-ranked options.
 """
@@ -89,8 +90,6 @@ class ArmExecutor(Executor):
         return ArmMultiWorld(truth, self.gripper, camera=camera)
 
     def _attempt(self, sub: SubTask, sign: float, tried: list[str]) -> Attempt:
-        from grace_dsl.robot.choose import NoGraspError
-
         inst = self.belief(sub.object)
         q0 = self.world.q(sub.object, sub.joint)
         lo, hi = inst.joint_limits()[sub.joint]
@@ -102,13 +101,13 @@ class ArmExecutor(Executor):
                 f"{goal:.3f}",
             )  # fmt: skip
         arm = tuple(float(v) for v in self.world.arm_q())
+        feasible = [o.grasp for o in inst.rank(sub.action, gripper=self.gripper) if o.feasible]
+        if not feasible:
+            why = f"no manipulation function of {sub.action} is feasible for the Panda hand"
+            return Attempt("", q0, q0, goal, False, "no_feasible_grasp", why, 0.0, (), arm, arm)
         try:
-            plan = self._plan(sub, inst, goal, sign, tried)
-        except NoGraspError as exc:
-            return Attempt(
-                "", q0, q0, goal, False, "no_feasible_grasp", str(exc), 0.0, (), arm, arm
-            )
-        except GraceError as exc:
+            plan = self._plan(sub, inst, goal, sign, [g for g in feasible if g not in tried])
+        except GraceError as exc:  # no grasp posture reachable, or no path from one
             return Attempt("", q0, q0, goal, False, "ik_failure", str(exc), 0.0, (), arm, arm)
         option = plan.choice.option
         tried.append(option.grasp)
@@ -134,16 +133,14 @@ class ArmExecutor(Executor):
         )
 
     def _plan(
-        self, sub: SubTask, inst: Instance, goal: float | None, sign: float, tried: list[str]
+        self, sub: SubTask, inst: Instance, goal: float | None, sign: float, fresh: list[str]
     ) -> ActionPlan:
         """The robot layer's plan for the sub-task from a base beside the object, collision
-        checked against the whole room, with the options not tried yet (all once every one
-        has been); a partial open replanned as far as the arm reaches when that is enough."""
+        checked against the whole room, with the options ``fresh`` (not tried yet; all of them
+        when empty); a partial open replanned as far as the arm reaches when that is enough."""
         from grace_dsl.robot.act import ActionPlanningError
         from grace_dsl.robot.placement import plan_placed
 
-        options = [o.grasp for o in inst.rank(sub.action, gripper=self.gripper) if o.feasible]
-        fresh = [g for g in options if g not in tried] or options
         others = [self.world.instance(n) for n in self.objects if n != sub.object]
         base = stand_beside(self.robot, inst, sub.action, others)
         lo = inst.joint_limits()[sub.joint][0]
@@ -153,7 +150,7 @@ class ArmExecutor(Executor):
             "seed": self.seed,
             "count": PLACEMENTS,
             "obstacles": others,
-            "grasps": fresh,
+            "grasps": fresh or None,
         }
         try:
             return plan_placed(self.robot, inst, sub.action, to, **kwargs).plan

@@ -12,8 +12,9 @@ posture, as a mobile manipulator would drive there with its arm stowed; the driv
 simulated. From there the plan runs as a single-object arm episode runs it
 (``arm_episode.execute_plan``: joint-space approach, pinch, compliant interaction through the
 arm's Jacobian, release, retreat), on this world's state. The base stands at whatever height the
-plan gives it (a pedestal on a lift column: the grasps ``placement.HEIGHT`` above it), so the
-floor is no obstacle for the arm (nor is it for the planner); the objects are, for both.
+plan gives it (a pedestal on a lift column, drawn but not colliding: the grasps
+``placement.HEIGHT`` above it, which can be below the floor for a low handle), so the floor is
+no obstacle for the arm (nor is it for the planner); the objects are, for both.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
 
 ARM = "arm/"  # the prefix of the arm's names in the world
 PARK = np.array([0.0, 0.0, -5.0])  # m: where the base waits before its first sub-task
+COLUMN = 3.0  # m: the drawn lift column under the base (hidden below the floor)
 
 
 @dataclass(frozen=True)
@@ -227,6 +229,17 @@ def _arm_spec(gripper: Gripper) -> tuple[str, HandSpec]:
     document, attached to the scene's world."""
     spec, assets, body, actuators = arm_body(np.eye(4), gripper)
     body.set("mocap", "true")
+    ET.SubElement(  # the lift column the pedestal stands on: seen by the camera, touches nothing
+        body,
+        "geom",
+        name="column",
+        type="cylinder",
+        size=f"0.07 {COLUMN / 2:g}",
+        pos=f"0 0 {-COLUMN / 2:g}",
+        contype="0",
+        conaffinity="0",
+        rgba="0.3 0.3 0.32 1",
+    )
     root = ET.Element("mujoco", model="arm")
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(root, "asset").extend(assets)
