@@ -45,7 +45,10 @@ def test_the_arm_is_the_panda_with_its_own_hand(capsys: pytest.CaptureFixture[st
 
 
 @pytest.mark.slow
-def test_a_one_step_instruction_on_a_shipped_scene(capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_one_step_instruction_on_a_shipped_scene(
+    lib: eac.Library, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert "ChestOfDrawers" in lib  # the session's library is built: the command loads its cache
     code = run_run(_args("open the top drawer", "--scene", "kitchen", "--agent", "arm", "--json"))
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["success"], out
