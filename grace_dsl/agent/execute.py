@@ -57,7 +57,10 @@ REASONS = (
     "unstable",
     "unreachable_target",
     "low_confidence",  # estimated mode: the agent refused its estimate of the object
+    "ik_failure",  # the arm: no plan from any base placement (``ArmExecutor``)
 )
+#: Reasons after which another attempt cannot do better: the step stops there.
+FINAL = ("no_feasible_grasp", "unreachable_target", "ik_failure")
 
 
 class ParamSource(Protocol):
@@ -95,6 +98,9 @@ class Attempt:
     detail: str = ""  # a sentence for a person
     sim_seconds: float = 0.0
     estimate: dict[str, Any] = field(default_factory=dict)  # estimated mode: the look used
+    base: tuple[float, ...] = ()  # the arm's base (x, y, z, yaw) it acted from; () for the hand
+    arm_before: tuple[float, ...] = ()  # the arm's joint angles before and after (the arm only)
+    arm_after: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -167,8 +173,12 @@ class Executor:
         self.seconds = seconds
         self.objects = {o.name: o for o in scene.objects}
         truth = [(o.name, self._instance(o, o.params)) for o in scene.objects]
-        self.world = MultiWorld(truth, self.gripper, camera=camera)
+        self.world = self._world(truth, camera)
         self._limits = {name: inst.joint_limits() for name, inst in truth}
+
+    def _world(self, truth: list[tuple[str, Instance]], camera: Camera | None) -> Any:
+        """The physical world the agent acts in: the flying hand's (``ArmExecutor``: the arm's)."""
+        return MultiWorld(truth, self.gripper, camera=camera)
 
     def _instance(self, obj: SceneObject, params: Mapping[str, Any]) -> Instance:
         try:
@@ -251,7 +261,7 @@ class Executor:
         for _ in range(self.max_attempts):
             attempt = self._attempt(sub, sign, tried)
             attempts.append(attempt)
-            if attempt.verified or attempt.reason in ("no_feasible_grasp", "unreachable_target"):
+            if attempt.verified or attempt.reason in FINAL:
                 break
         q_end = self.world.q(sub.object, sub.joint)
         return StepResult(index, sub, tuple(attempts), q_start, q_end, attempts[-1].verified)

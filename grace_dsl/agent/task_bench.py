@@ -2,7 +2,8 @@
 
 Each task of the shipped suite (``grace_dsl.agent.suite``) is parsed in its scene (the offline
 parser by default) and compared with its expected plan; the parsed plan is then carried out by
-the flying hand in a fresh MuJoCo world of that scene (``agent.execute``, oracle parameters). A
+the flying hand (or, ``agent="arm"``, the full Panda on a base placed beside each object:
+``agent.arm_execute``) in a fresh MuJoCo world of that scene (oracle parameters). A
 task succeeds when every sub-task verified and every object's last condition holds at the end
 (``RunResult.success``); a plan the parser refused is a failed task. The issue's targets with the
 offline parser: parse accuracy >= 0.95, task success >= 0.85.
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from grace_dsl.agent.suite import SuiteTask
     from grace_dsl.runtime.library import Library
 
+AGENTS = {"gripper": "flying Panda hand", "arm": "full Panda arm, base placed per sub-task"}
 SMALL = ("k01", "k04")  # a one-step and a three-step task: the smoke run's subset
 
 
@@ -48,6 +50,7 @@ class TaskReport:
     runs: tuple[TaskRun, ...]
     parser: str
     wall_seconds: float
+    agent: str = "gripper"
 
     @property
     def parse_accuracy(self) -> float:
@@ -60,7 +63,7 @@ class TaskReport:
     def table(self) -> str:
         n = len(self.runs)
         lines = [
-            f"tasks: {n} ({self.parser} parser, flying Panda hand, oracle parameters)",
+            f"tasks: {n} ({self.parser} parser, {AGENTS[self.agent]}, oracle parameters)",
             f"parse accuracy: {self.parse_accuracy:.3f} ({sum(r.correct for r in self.runs)}/{n})",
             f"task success:   {self.task_success:.3f} ({sum(r.success for r in self.runs)}/{n})",
             f"retries: {sum(r.attempts - r.steps for r in self.runs)} extra attempts; "
@@ -74,6 +77,7 @@ class TaskReport:
 
         return {
             "parser": self.parser,
+            "agent": self.agent,
             "parse_accuracy": self.parse_accuracy,
             "task_success": self.task_success,
             "wall_seconds": self.wall_seconds,
@@ -87,10 +91,14 @@ def run_tasks(
     parse: Callable[[str, SceneSpec], Plan] | None = None,
     parser: str = "offline",
     progress: bool = True,
+    agent: str = "gripper",
 ) -> TaskReport:
-    """Parse and execute the suite's tasks (``ids``: a subset, in suite order)."""
+    """Parse and execute the suite's tasks (``ids``: a subset, in suite order) with ``agent``
+    (``gripper``: the flying hand; ``arm``: the full Panda)."""
     from grace_dsl.agent.suite import compare, load_suite, shipped_scene_specs
 
+    if agent not in AGENTS:
+        raise ExecutionError(f"no agent {agent!r}; agents: {sorted(AGENTS)}")
     if parse is None:
         from grace_dsl.agent.offline import OfflineParser
 
@@ -104,9 +112,9 @@ def run_tasks(
     runs = []
     with _bar(progress, len(tasks)) as advance:
         for task in tasks:
-            runs.append(_one(task, scenes, lib, parse, compare))
+            runs.append(_one(task, scenes, lib, parse, compare, agent))
             advance()
-    return TaskReport(tuple(runs), parser, time.perf_counter() - started)
+    return TaskReport(tuple(runs), parser, time.perf_counter() - started, agent)
 
 
 def _one(
@@ -115,6 +123,7 @@ def _one(
     lib: Library,
     parse: Callable[[str, SceneSpec], Plan],
     compare: Callable[[SuiteTask, Plan], str],
+    agent: str = "gripper",
 ) -> TaskRun:
     scene = scenes[task.scene]
     common = (task.id, task.scene, task.instruction)
@@ -124,7 +133,12 @@ def _one(
         return TaskRun(*common, False, False, False, 0, 0, f"refused: {exc}", 0.0)
     wrong = compare(task, plan)
     started = time.perf_counter()
-    result = Executor(scene, lib).run(plan)
+    if agent == "arm":
+        from grace_dsl.agent.arm_execute import ArmExecutor
+
+        result = ArmExecutor(scene, lib).run(plan)
+    else:
+        result = Executor(scene, lib).run(plan)
     problem = _problem(result) if not result.success else ""
     if wrong:
         problem = f"parse: {wrong}" + (f"; run: {problem}" if problem else "")

@@ -3,16 +3,20 @@
 The instruction is parsed against the scene (``--parser offline``: the deterministic parser;
 ``vlm``: an OpenAI-compatible vision-language model), or a plan is read from ``--plan FILE`` (a
 ``Plan.to_json`` document, e.g. from ``--json`` of an earlier run) to replay or hand-write one.
-The plan is then carried out in MuJoCo by the flying hand (``grace_dsl.agent.execute``): each
+The plan is then carried out in MuJoCo by the flying hand (``grace_dsl.agent.execute``), or with
+``--agent arm`` by the full Panda on a base placed beside each object in turn
+(``grace_dsl.agent.arm_execute``): each
 sub-task's manipulation function is ranked for the hand, executed, and its condition checked on
 the measured joint, retrying with the next-ranked function. One line per attempt is printed, or
 the whole result as JSON. ``--png DIR`` writes the scene before and after; ``--html FILE`` a page
 with both pictures and the step table.
 
 Exit codes: 0 every sub-task verified, 3 some did not (the run itself worked), 1 a bad argument,
-scene or plan, 2 a mode that is not built yet (``--agent arm``). ``--mode estimated``: the
-agent's model of each object comes from the camera (``grace_dsl.agent.estimated.Estimator``), and
-a failed attempt (or a refused estimate) is retried after a new look from the next view.
+scene or plan, 2 a mode that is not built yet (``--mode estimated --agent arm``). ``--mode
+estimated``: the agent's model of each object comes from the camera
+(``grace_dsl.agent.estimated.Estimator``), and a failed attempt (or a refused estimate) is
+retried after a new look from the next view. ``--agent arm``: the Panda on a base placed beside
+each sub-task's object (``grace_dsl.agent.arm_execute.ArmExecutor``).
 """
 
 from __future__ import annotations
@@ -80,19 +84,31 @@ def _run(args: Any) -> int:
     from grace_dsl.runtime.library import load_library
     from grace_dsl.sim.camera import Camera
 
-    if args.agent != "gripper":
-        raise NotBuiltError("--agent arm is not built yet: grace run drives the flying hand")
+    if args.agent == "arm" and args.hand != "panda":
+        raise ExecutionError(f"--agent arm is the Panda with its own hand, not {args.hand!r}")
+    if args.agent == "arm" and args.mode == "estimated":
+        raise NotBuiltError(
+            "--mode estimated drives the flying hand only; run the arm with --mode oracle"
+        )
     library = load_library()
     scene = load_scene(args.scene, library)
-    executor = Executor(
-        scene,
-        library,
-        Gripper.load(args.hand),
-        params=_source(args),
-        max_attempts=args.attempts,
-        seconds=args.seconds,
-        camera=Camera(width=640, height=480),
-    )
+    camera = Camera(width=640, height=480)
+    if args.agent == "arm":
+        from grace_dsl.agent.arm_execute import ArmExecutor
+
+        executor: Executor = ArmExecutor(
+            scene, library, max_attempts=args.attempts, seconds=args.seconds, camera=camera
+        )
+    else:
+        executor = Executor(
+            scene,
+            library,
+            Gripper.load(args.hand),
+            params=_source(args),
+            max_attempts=args.attempts,
+            seconds=args.seconds,
+            camera=camera,
+        )
     shown = args.png or args.html or (args.parser == "vlm" and not args.plan)
     before = executor.world.render().rgb if shown else None
     plan = load_plan(Path(args.plan)) if args.plan else parse(args, scene, library, before)
@@ -130,11 +146,11 @@ def run_suite(args: Any) -> int:
     from grace_dsl.agent.task_bench import run_tasks
     from grace_dsl.runtime.library import load_library
 
-    if args.agent != "gripper" or args.mode != "oracle":
-        error("--suite tasks runs with --agent gripper --mode oracle only (the others: not built)")
+    if args.mode != "oracle":
+        error("--suite tasks runs with --mode oracle only (the others: not built)")
         return 2
     try:
-        report = run_tasks(load_library())
+        report = run_tasks(load_library(), agent=args.agent)
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "tasks.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
@@ -204,7 +220,16 @@ def plan_from_json(data: dict[str, Any]) -> Plan:
     return Plan(data["instruction"], objects, subtasks, tuple(data.get("notes", ())))
 
 
+def _base(base: tuple[float, ...]) -> str:
+    """The arm's base pose as a short text (- when the arm did not move)."""
+    if not base:
+        return "-"
+    x, y, z, yaw = base
+    return f"{x:.2f}, {y:.2f}, {z:.2f}, {np.degrees(yaw):.0f} deg"
+
+
 def _print(result: Any) -> None:
+    arm = any(a.base for s in result.steps for a in s.attempts)
     rows = []
     for step in result.steps:
         c = step.subtask.condition
@@ -220,12 +245,10 @@ def _print(result: Any) -> None:
                     "yes" if a.verified else "no",
                     (a.reason or "") + _looked(a),
                 ]
+                + ([_base(a.base)] if arm else [])
             )
-    print_table(
-        result.plan.instruction,
-        ["step", "text", "action", "option", "joint", "condition", "verified", "reason"],
-        rows,
-    )
+    head = ["step", "text", "action", "option", "joint", "condition", "verified", "reason"]
+    print_table(result.plan.instruction, head + (["base (x, y, z, yaw)"] if arm else []), rows)
     print_text("success" if result.success else "FAILED: a condition did not hold")
 
 
@@ -265,6 +288,7 @@ def _page(result: Any, before: np.ndarray | None, after: np.ndarray | None) -> s
                 f"{a.q_before:.3f} -> {a.q_after:.3f}",
                 "yes" if a.verified else "no",
                 f"{a.reason} {a.detail}".strip(),
+                _base(a.base),
             )
         )
         + "</tr>"
@@ -278,6 +302,7 @@ def _page(result: Any, before: np.ndarray | None, after: np.ndarray | None) -> s
         "<style>body{font-family:sans-serif}figure{display:inline-block}td{padding:2px 8px}"
         "</style>"
         f"<h1>{title}</h1><p>{verdict}</p>{pics}<table><tr><th>step</th><th>text</th>"
-        "<th>action</th><th>option</th><th>joint</th><th>verified</th><th>reason</th></tr>"
+        "<th>action</th><th>option</th><th>joint</th><th>verified</th><th>reason</th>"
+        "<th>arm base (x, y, z, yaw)</th></tr>"
         f"{rows}</table>"
     )

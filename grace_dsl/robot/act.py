@@ -24,6 +24,7 @@ or leave the joint limits, the phase falls back to its polyline, stopping at the
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -125,26 +126,37 @@ def plan_action(
     acceleration: float | FloatArray = DEFAULT_ACCELERATION,
     allowance: float = FINGER_ALLOWANCE,
     candidates: int = CANDIDATES,
+    obstacles: Sequence[Any] = (),
+    grasps: Sequence[str] | None = None,
 ) -> ActionPlan:
     """The trajectory that performs ``action`` on ``inst`` to joint value ``to`` (default the
     end of the joint's range the action drives toward; for an action that moves no joint, a
     push of ``PUSH_DISTANCE``). The grasp postures of ``grasp_candidates`` are tried best margin
     first (at most ``candidates``) until one carries the whole action. Raises
     :class:`ActionPlanningError` (or ``NoGraspError``) with the reason of the candidate that got
-    furthest when this base placement cannot do it."""
+    furthest when this base placement cannot do it. ``obstacles``: the other objects of a room
+    (posed instances that stand still), checked in every phase; ``grasps``: only these options
+    of ``inst.rank`` (default all)."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
-    found, rejected = grasp_candidates(robot, inst, action, base=base_m, seed=seed)
+    found, rejected = grasp_candidates(
+        robot, inst, action, base=base_m, seed=seed, obstacles=obstacles, grasps=grasps
+    )
     clock.append(("grasp", time.perf_counter()))
-    full = collision_scene(robot, inst, base=base_m)
+    full = collision_scene(robot, inst, base=base_m, obstacles=obstacles)
     joint = inst.concept.actions[action].joint
     failures: list[ActionPlanningError] = []
     to_value = to
     for k, choice in enumerate(found[:candidates]):
         link = inst.concept.grasps[choice.option.grasp].link
         held = collision_scene(
-            robot, inst, base=base_m, touching=[(f, link) for f in FINGERS], allowance=allowance
+            robot,
+            inst,
+            base=base_m,
+            touching=[(f, link) for f in FINGERS],
+            allowance=allowance,
+            obstacles=obstacles,
         )
         path, values, to_value = _action_path(inst, action, choice.ik.grasp_pose, to, steps)
         times: list[tuple[str, float]] = []

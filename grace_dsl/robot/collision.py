@@ -149,9 +149,13 @@ def collision_scene(
     allowance: float = 0.005,
     srdf: str | Path | None = None,
     base: Any = None,
+    obstacles: Sequence[Any] = (),
 ) -> CollisionScene:
     """The collision scene of ``robot``, its base at world pose ``base`` (default the origin),
     and the instance ``inst``.
+
+    ``obstacles``: other posed instances (the rest of a room) that stand still: every robot
+    body, the fingers included, must keep clear of them; ``place`` does not move them.
 
     ``ignore`` names robot bodies (prefixes of their geometry names, e.g. ``panda_leftfinger``)
     that may touch the object: the fingers at a grasp. ``srdf`` defaults to the one beside the
@@ -180,6 +184,11 @@ def collision_scene(
             geometry.addCollisionPair(pin.CollisionPair(i, j))
             if any(name.startswith(body) and link == held for body, held in touching):
                 allowed.append(geometry.findCollisionPair(pin.CollisionPair(i, j)))
+    for obstacle in obstacles:
+        for _, g in _object_geometry(obstacle, to_base):
+            k = geometry.addGeometryObject(g)
+            for i in robot_geoms:
+                geometry.addCollisionPair(pin.CollisionPair(i, k))
     return CollisionScene(
         robot,
         geometry,

@@ -186,11 +186,22 @@ def _cut(plan: ActionPlan) -> _Phases:
     )
 
 
-def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: float) -> Outcome:
-    """Run ``plan`` on the simulated arm; ``budget`` simulated seconds."""
+def execute_plan(
+    inst: Instance,
+    task: TaskAction,
+    plan: ActionPlan,
+    budget: float,
+    *,
+    world: ArmWorld | None = None,
+    goal: float | None = None,
+) -> Outcome:
+    """Run ``plan`` on the simulated arm; ``budget`` simulated seconds. ``world``: an arm world
+    already standing at ``plan.base`` and ``plan.q[0]`` (a room of several objects; default a
+    fresh one of ``inst`` alone); ``goal``: the joint value to drive to (default the episode's)."""
     robot = panda()
     phases = _cut(plan)
-    world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
+    world = world or ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
+    aimed = goal
     track = phases.move_in
     touched = [False]  # an arm link (not the hand) met the object on the way in
 
@@ -216,6 +227,7 @@ def execute_plan(inst: Instance, task: TaskAction, plan: ActionPlan, budget: flo
     goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
     if task.sign > 0 and plan.to is not None:
         goal = min(goal, float(plan.to))
+    goal = goal if aimed is None else aimed
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
     # the budget is the interaction's, as the flying hand's (its approach takes half a second;
     # the arm's planned approach several)

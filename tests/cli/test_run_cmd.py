@@ -80,7 +80,10 @@ def test_bad_input_and_modes_not_built(files: Path, capsys: pytest.CaptureFixtur
     assert main(["run", "--scene", scene, "--plan", scene]) == 1  # a scene is not a plan
     assert "not a plan" in capsys.readouterr().err
     assert main(["run", "--scene", str(files / "nope.json"), "--plan", scene]) == 1
-    assert main(["run", "--scene", scene, "--agent", "arm", "--plan", scene]) == 2
-    assert "not built" in capsys.readouterr().err
-    assert main(["bench", "--suite", "tasks", "--agent", "arm"]) == 2  # the suite's branch
+    assert main(["run", "--scene", scene, "--agent", "arm", "--hand", "pusher"]) == 1
+    assert "Panda with its own hand" in capsys.readouterr().err
+    arm_estimated = ["--mode", "estimated", "--agent", "arm", "--plan", scene]
+    assert main(["run", "--scene", scene, *arm_estimated]) == 2
+    assert "flying hand only" in capsys.readouterr().err
+    assert main(["bench", "--suite", "tasks", "--mode", "estimated"]) == 2  # the suite's branch
     assert "--suite tasks" in capsys.readouterr().err
