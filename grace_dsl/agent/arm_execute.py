@@ -127,9 +127,9 @@ class ArmExecutor(Executor):
             reason,
             detail,
             act.sim_seconds,
-            tuple(round(v, 4) for v in where),
-            act.arm_before,
-            act.arm_after,
+            base=tuple(round(v, 4) for v in where),
+            arm_before=act.arm_before,
+            arm_after=act.arm_after,
         )
 
     def _plan(
