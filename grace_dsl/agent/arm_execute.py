@@ -104,11 +104,15 @@ class ArmExecutor(Executor):
         feasible = [o.grasp for o in inst.rank(sub.action, gripper=self.gripper) if o.feasible]
         if not feasible:
             why = f"no manipulation function of {sub.action} is feasible for the Panda hand"
-            return Attempt("", q0, q0, goal, False, "no_feasible_grasp", why, 0.0, (), arm, arm)
+            return Attempt(
+                "", q0, q0, goal, False, "no_feasible_grasp", why, arm_before=arm, arm_after=arm
+            )
         try:
             plan = self._plan(sub, inst, goal, sign, [g for g in feasible if g not in tried])
         except GraceError as exc:  # no grasp posture reachable, or no path from one
-            return Attempt("", q0, q0, goal, False, "ik_failure", str(exc), 0.0, (), arm, arm)
+            return Attempt(
+                "", q0, q0, goal, False, "ik_failure", str(exc), arm_before=arm, arm_after=arm
+            )
         option = plan.choice.option
         tried.append(option.grasp)
         task = TaskAction(sub.action, sub.joint, sign)
