@@ -5,6 +5,7 @@ drawer's `open` moves that drawer and no other, and the fit benchmark fits a gen
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -12,7 +13,9 @@ import numpy as np
 import pytest
 
 import grace_dsl as eac
+from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.verify import PENETRATION
 
 # name -> (parameters, drawers, doors): the layouts issue 16 lists, on a plinth or on legs
 LAYOUTS = {
@@ -98,6 +101,44 @@ def test_doors_hinge_on_their_side(concept: eac.Concept, params: dict, sides: li
         opened = inst.with_joints({name: 1.2}).link_pose(leaf)[:3, 3]
         assert opened[2] > centre[2] + 0.1  # out of the front
         assert np.sign(opened[0] - centre[0]) == (-1 if side == "left" else 1)
+
+
+# eacc verify's failing draw, reduced: two doors with recessed pulls, the other door opened fully
+# and this one barely (door [0] hinged on the right put its leaf over door [1]'s free edge)
+PUSH_EDGE_PAIR = {
+    "size": (0.728, 1.267, 0.5615),
+    "rows": 1,
+    "cols": 1,
+    "doors": 2,
+    "board": 0.025,
+    "front_thickness": 0.025,
+    "handle_kind": "recessed",
+    "door_handle_inset": 0.139,
+    "door_handle_y": -0.248,
+}
+
+
+def test_a_pair_of_doors_hinged_in_the_middle_is_refused(concept: eac.Concept) -> None:
+    with pytest.raises(eac.GraceError, match="outer edges"):
+        concept.instantiate(**PUSH_EDGE_PAIR, hinge_side="right")
+
+
+@pytest.mark.parametrize(("pushed", "other"), [(1, 0), (0, 1)])
+def test_push_edge_clears_the_other_open_door(
+    concept: eac.Concept, pushed: int, other: int
+) -> None:
+    """The closed fingertips pushing a door's free edge touch that door and enter nothing more
+    than verify's tolerance, whatever the other door of the pair is opened to."""
+    pads = finger_points(Gripper.panda(), 0.0)
+    base = concept.instantiate(**PUSH_EDGE_PAIR, hinge_side="left")
+    for q in (0.0, math.radians(90), math.radians(110)):
+        inst = base.with_joints(
+            {f"door[{other}].hinge": q, f"door[{pushed}].hinge": math.radians(7.5)}
+        )
+        poses = inst.grasps(f"door[{pushed}].push_edge", 21)
+        d = np.array([inst.sdf(pads @ g[:3, :3].T + g[:3, 3]).min() for g in poses])
+        assert d.min() >= -PENETRATION  # into no shape: not the other door, not the pull's cut
+        assert d.max() <= PENETRATION  # and on the leaf's face (the SDF follows the hinge)
 
 
 def test_a_drawers_open_moves_that_drawer(concept: eac.Concept) -> None:
