@@ -34,6 +34,8 @@ _EXPR_FIELDS = ("value", "at", "cond", "pose", "width", "about", "axis", "origin
 
 Variants = dict[str, tuple[str, tuple[tuple[str, str], ...]]]  # part -> (choice, (option, alt))
 
+_MAX_DEPTH = 8  # how deep parts nest before the pass stops looking (the library nests 3)
+
 
 @dataclass(frozen=True)
 class Scope:
@@ -49,12 +51,18 @@ def rewrite_concept(c: ast.Concept, scope: Scope) -> tuple[ast.Concept, list[Dia
     return replace(c, members=members), r.diags
 
 
-def uses_variants(c: ast.Concept, scope: Scope) -> bool:
-    """Whether ``c`` or a concept it places has a variant part (else the pass leaves it)."""
+def uses_variants(c: ast.Concept, scope: Scope, depth: int = 0) -> bool:
+    """Whether ``c`` or a concept it places, at any depth, has a variant part (else the pass
+    leaves it): ``BoardCabinet(door.handle.standoff: 22mm)`` reaches the door's variant handle
+    through a part that has none of its own."""
     if c.variants:
         return True
+    if depth >= _MAX_DEPTH:  # a cycle of placements is resolve's error, not a reason to loop
+        return False
     return any(
-        isinstance(m, ast.Part) and (sub := scope.concept(m.concept)) is not None and sub.variants
+        isinstance(m, ast.Part)
+        and (sub := scope.concept(m.concept)) is not None
+        and uses_variants(sub, scope, depth + 1)
         for m in _flat(c.members)
     )
 
@@ -377,7 +385,7 @@ def _grasps(c: ast.Concept, scope: Scope, prefix: str = "", depth: int = 0) -> l
     for m in _flat(c.members):
         if isinstance(m, ast.Grasp):
             out.append(prefix + m.name)
-        elif isinstance(m, ast.Part) and depth < 8:
+        elif isinstance(m, ast.Part) and depth < _MAX_DEPTH:
             sub = scope.concept(m.concept)
             if sub is not None:
                 out += _grasps(sub, scope, f"{prefix}{m.name}.", depth + 1)
