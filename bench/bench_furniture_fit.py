@@ -57,10 +57,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import furniture_gen as gen  # noqa: E402
 
 import grace_dsl as eac  # noqa: E402
-from grace_dsl.geometry import sample_surface, surface_area  # noqa: E402
 from grace_dsl.runtime import masks  # noqa: E402
 from grace_dsl.runtime.kinematics import Kinematics  # noqa: E402
-from grace_dsl.runtime.shapes import instance_pieces  # noqa: E402
+from grace_dsl.runtime.shapes import instance_pieces, piece_area, piece_samples  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "furniture_fit.json"
 FURNITURE = Path(__file__).resolve().parents[1] / "grace_dsl" / "concepts" / "furniture.eac"
@@ -322,10 +321,10 @@ class Fit:
         with their piece (its pose follows the parameters and joints); a new anchor after each
         solve lets them follow the sizes too (as ICP re-matches its points)."""
         pieces = instance_pieces(inst)
-        areas = np.array([surface_area(p.primitive, p.params) for p, _ in pieces])
+        areas = np.array([piece_area(p) for p, _ in pieces])  # a recessed pull's is a mesh
         counts = np.maximum(np.round(N_CONCEPT * areas / areas.sum()), 1).astype(int)
         self.local = [
-            sample_surface(piece.primitive, piece.params, int(n), seed=k)[0]
+            piece_samples(piece, int(n), np.random.default_rng(k))[0]
             for k, ((piece, _), n) in enumerate(zip(pieces, counts))
         ]
 
