@@ -179,3 +179,24 @@ def test_fit_smoke(tmp_path: Path) -> None:
         assert p["axis_deg"] < 2.0 and p["origin_mm"] < 10.0
         if p["kind"] == "revolute":
             assert p["hinge_fit"] == p["hinge_true"]
+
+
+@pytest.mark.slow
+def test_the_handle_kind_is_read_off_the_meshes(tmp_path: Path) -> None:
+    """The generator puts knobs on some models (bar pulls on the rest), and the fit reads the
+    type off each moving link's mesh, as a perception module classifies a handle: right on
+    every model, and a knob model's fronts carry no bar."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import bench_furniture_fit as bench
+    import furniture_gen as gen
+
+    models = gen.sample_models(8, 0)
+    kinds = [m.params["handle_kind"] for m in models]
+    assert set(kinds) == {"bar", "knob"}
+    for model in models:
+        layout = bench.Layout.of_urdf(gen.write_model(model, tmp_path))
+        assert layout.handle_kind == model.params["handle_kind"], model.name
+        assert all(o["handle_kind"] == layout.handle_kind for o in layout.options())
+        bars = bench.recipe_for(layout, layout.options()[0])
+        reads_bar = any(f.name in ("drawer_handle", "door_handle") for f in bars)
+        assert reads_bar == (layout.handle_kind == "bar")
