@@ -137,8 +137,9 @@ class Layout:
         return Layout(rows, cols if slides else 1, len(hinges), tuple(slides), tuple(hinges), kind)
 
     def options(self) -> list[dict[str, Any]]:
-        """The discrete parameters left to the fit: the stand, door [0]'s hinge side and, for a
-        single door, a blind panel on either side or none (the handle type is classified)."""
+        """The discrete parameters left to the fit: the stand, a single door's hinge side (a
+        pair hinges at its outer edges, as the concept requires) and, for a single door, a
+        blind panel on either side or none (the handle type is classified)."""
         base = {
             "rows": self.rows,
             "cols": self.cols,
@@ -146,7 +147,8 @@ class Layout:
             "handle_kind": self.handle_kind,
         }
         stands = [{"stand": "plinth"}, {"stand": "legs"}]
-        hinges = [{}] if self.doors == 0 else [{"hinge_side": s} for s in ("left", "right")]
+        sides = ("left",) if self.doors == 2 else ("left", "right")  # a pair: outer edges
+        hinges = [{}] if self.doors == 0 else [{"hinge_side": s} for s in sides]
         blinds: list[dict[str, Any]] = [{"blind": 0}]
         if self.doors == 1:
             blinds += [{"blind": 1, "blind_side": s} for s in ("left", "right")]
@@ -572,6 +574,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep", type=Path, help="write the generated models here")
     ap.add_argument("--layouts", help="fit only the models of these layouts (comma-separated)")
     ap.add_argument("--handles", help="fit only the models with these handle types (bar,knob)")
+    ap.add_argument("--models", help="fit only the models of these names (comma-separated)")
     ap.add_argument(
         "--merge",
         type=Path,
@@ -590,6 +593,8 @@ def main(argv: list[str] | None = None) -> int:
         models = [m for m in models if m.layout in args.layouts.split(",")]
     if args.handles:
         models = [m for m in models if m.params["handle_kind"] in args.handles.split(",")]
+    if args.models:
+        models = [m for m in models if m.name in args.models.split(",")]
     fits = []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.keep or Path(tmp)
