@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python bench/bench_furniture_fit.py [--n 30] [--seed 0] [--out FILE] [--smoke]``
 (writes bench/results/furniture_fit.json; ``--smoke`` fits 2 models with a small budget;
-``--layouts a,b`` fits only the models of those layouts).
+``--layouts a,b`` fits only the models of those layouts, ``--handles knob`` those with knobs).
 
 ``bench/furniture_gen.py`` samples models from catalogue ranges and writes them as
 PartNet-Mobility-style directories (``mobility.urdf`` and OBJ meshes) without reading any
@@ -57,10 +57,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import furniture_gen as gen  # noqa: E402
 
 import grace_dsl as eac  # noqa: E402
-from grace_dsl.geometry import sample_surface, surface_area  # noqa: E402
 from grace_dsl.runtime import masks  # noqa: E402
 from grace_dsl.runtime.kinematics import Kinematics  # noqa: E402
-from grace_dsl.runtime.shapes import instance_pieces  # noqa: E402
+from grace_dsl.runtime.shapes import instance_pieces, piece_area, piece_samples  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "furniture_fit.json"
 FURNITURE = Path(__file__).resolve().parents[1] / "grace_dsl" / "concepts" / "furniture.eac"
@@ -113,11 +112,12 @@ class Layout:
     doors: int
     drawer_origins: tuple[tuple[float, float, float], ...]
     hinge_origins: tuple[tuple[float, float, float], ...]
+    handle_kind: str = "bar"
 
     @staticmethod
     def of_urdf(path: Path) -> Layout:
         root = ET.parse(path).getroot()
-        slides, hinges = [], []
+        slides, hinges, moving = [], [], []
         for j in root.iter("joint"):
             origin = j.find("origin")
             xyz = tuple(
@@ -127,16 +127,28 @@ class Layout:
                 slides.append(xyz)
             elif j.get("type") == "revolute":
                 hinges.append(xyz)
+            child = j.find("child")
+            if j.get("type") in ("prismatic", "revolute") and child is not None:
+                moving.append(child.get("link", ""))
         rows = len(_distinct([p[1] for p in slides]))
         cols = len(_distinct([p[0] for p in slides]))
-        return Layout(rows, cols if slides else 1, len(hinges), tuple(slides), tuple(hinges))
+        kinds = [handle_kind_of(_link_mesh(path, root, link)) for link in moving]
+        kind = max(sorted(set(kinds)), key=kinds.count) if kinds else "bar"
+        return Layout(rows, cols if slides else 1, len(hinges), tuple(slides), tuple(hinges), kind)
 
     def options(self) -> list[dict[str, Any]]:
-        """The discrete parameters left to the fit: the stand, door [0]'s hinge side and, for a
-        single door, a blind panel on either side or none."""
-        base = {"rows": self.rows, "cols": self.cols, "doors": self.doors}
+        """The discrete parameters left to the fit: the stand, a single door's hinge side (a
+        pair hinges at its outer edges, as the concept requires) and, for a single door, a
+        blind panel on either side or none (the handle type is classified)."""
+        base = {
+            "rows": self.rows,
+            "cols": self.cols,
+            "doors": self.doors,
+            "handle_kind": self.handle_kind,
+        }
         stands = [{"stand": "plinth"}, {"stand": "legs"}]
-        hinges = [{}] if self.doors == 0 else [{"hinge_side": s} for s in ("left", "right")]
+        sides = ("left",) if self.doors == 2 else ("left", "right")  # a pair: outer edges
+        hinges = [{}] if self.doors == 0 else [{"hinge_side": s} for s in sides]
         blinds: list[dict[str, Any]] = [{"blind": 0}]
         if self.doors == 1:
             blinds += [{"blind": 1, "blind_side": s} for s in ("left", "right")]
@@ -151,6 +163,29 @@ class Layout:
 
     def door_names(self) -> list[str]:
         return [f"door[{i}].hinge" for i in range(self.doors)]
+
+
+KNOB_SPAN = 0.07  # m: a handle whose outermost face spans less than this is a knob
+
+
+def handle_kind_of(mesh: trimesh.Trimesh) -> str:
+    """A moving part's handle type from its mesh (closed, +z out of the front): the handle is
+    what stands out furthest, and a bar pull's outermost face is a line at least 96 mm long
+    (catalogue hole spacings), a knob's a disc of at most 60 mm."""
+    v = np.asarray(mesh.vertices)
+    tip = v[v[:, 2] >= v[:, 2].max() - 0.004]
+    span = float(np.ptp(tip[:, :2], axis=0).max())
+    return "bar" if span > KNOB_SPAN else "knob"
+
+
+def _link_mesh(urdf: Path, root: ET.Element, link: str) -> trimesh.Trimesh:
+    """The link's visual mesh as the URDF names it (in the link frame)."""
+    for el in root.iter("link"):
+        if el.get("name") == link:
+            geom = el.find("visual/geometry/mesh")
+            if geom is not None:
+                return trimesh.load(urdf.parent / geom.get("filename", ""), force="mesh")
+    raise ValueError(f"{urdf}: link {link!r} has no visual mesh")
 
 
 def _distinct(values: list[float], tol: float = 0.01) -> list[float]:
@@ -171,13 +206,15 @@ def recipe_for(layout: Layout, option: dict[str, Any]) -> tuple[Free, ...]:
         Free("stand_height"),
     ]
     free.append(Free("recess") if option["stand"] == "plinth" else Free("leg_radius"))
+    bars = option.get("handle_kind", "bar") == "bar"  # a knob's sizes are the concept's own
     if layout.rows:
-        free += [Free("tray_depth"), Free("drawer_handle", 0), Free("drawer_handle", 2)]
+        free.append(Free("tray_depth"))
+        free += [Free("drawer_handle", 0), Free("drawer_handle", 2)] if bars else []
         if layout.doors:
             free.append(Free("drawer_height"))
     if layout.doors:
-        free += [Free("door_handle", 0), Free("door_handle", 2), Free("door_handle_inset")]
-        free.append(Free("door_handle_y"))
+        free += [Free("door_handle", 0), Free("door_handle", 2)] if bars else []
+        free += [Free("door_handle_inset"), Free("door_handle_y")]
     if option.get("blind"):
         free.append(Free("blind_width"))
     free += [Free(n, joint=True) for n in layout.drawer_names() + layout.door_names()]
@@ -322,10 +359,10 @@ class Fit:
         with their piece (its pose follows the parameters and joints); a new anchor after each
         solve lets them follow the sizes too (as ICP re-matches its points)."""
         pieces = instance_pieces(inst)
-        areas = np.array([surface_area(p.primitive, p.params) for p, _ in pieces])
+        areas = np.array([piece_area(p) for p, _ in pieces])  # a recessed pull's is a mesh
         counts = np.maximum(np.round(N_CONCEPT * areas / areas.sum()), 1).astype(int)
         self.local = [
-            sample_surface(piece.primitive, piece.params, int(n), seed=k)[0]
+            piece_samples(piece, int(n), np.random.default_rng(k))[0]
             for k, ((piece, _), n) in enumerate(zip(pieces, counts))
         ]
 
@@ -431,6 +468,7 @@ def fit_model(
         "layout": model.layout,
         "concept": CONCEPT,
         "option": fit.option,
+        "handle_kind_true": model.params.get("handle_kind", "bar"),
         "residual_mm": 1e3 * float((there.mean() + back.mean()) / 2),
         "real_to_concept_mm": 1e3 * float(there.mean()),
         "concept_to_real_mm": 1e3 * float(back.mean()),
@@ -493,6 +531,10 @@ def summarize(fits: list[dict]) -> dict:
         "max_origin_mm": max((p["origin_mm"] for p in parts), default=None),
         "hinge_side_right": sum(p["hinge_true"] == p["hinge_fit"] for p in doors),
         "doors": len(doors),
+        "knob_models": sum(f.get("handle_kind_true") == "knob" for f in fits),
+        "handle_kind_right": sum(
+            f["option"].get("handle_kind", "bar") == f.get("handle_kind_true", "bar") for f in fits
+        ),
         "within_targets": {
             "residual": sum(r <= TARGETS["residual_mm"] for r in res),
             "axis": sum(p["axis_deg"] <= TARGETS["axis_deg"] for p in parts),
@@ -531,6 +573,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--smoke", action="store_true", help="2 models, a small budget")
     ap.add_argument("--keep", type=Path, help="write the generated models here")
     ap.add_argument("--layouts", help="fit only the models of these layouts (comma-separated)")
+    ap.add_argument("--handles", help="fit only the models with these handle types (bar,knob)")
+    ap.add_argument("--models", help="fit only the models of these names (comma-separated)")
     ap.add_argument(
         "--merge",
         type=Path,
@@ -547,6 +591,10 @@ def main(argv: list[str] | None = None) -> int:
     models = gen.sample_models(args.n, args.seed)
     if args.layouts:
         models = [m for m in models if m.layout in args.layouts.split(",")]
+    if args.handles:
+        models = [m for m in models if m.params["handle_kind"] in args.handles.split(",")]
+    if args.models:
+        models = [m for m in models if m.name in args.models.split(",")]
     fits = []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.keep or Path(tmp)
@@ -567,7 +615,9 @@ def main(argv: list[str] | None = None) -> int:
             )
     summary = summarize(fits)
     result = {
-        "command": "bench/bench_furniture_fit.py" + (" --smoke" if args.smoke else ""),
+        "command": " ".join(
+            ["bench/bench_furniture_fit.py", *(sys.argv[1:] if argv is None else argv)]
+        ),
         "n": args.n,
         "seed": args.seed,
         "budget": args.budget,

@@ -1,10 +1,11 @@
 """Articulated storage furniture written the way the common datasets ship it, with no concept.
 
 Each model is a layout sampled from catalogue ranges (carcass, plinth or legs, doors, drawers,
-handles), built from boxes and cylinders with trimesh, and written as a PartNet-Mobility-style
-directory: ``mobility.urdf`` (a root link ``base``, one link per rigid part, ``fixed``,
-``revolute`` and ``prismatic`` joints whose ``origin`` is a point on the axis), one OBJ per
-link under ``textured_objs/`` (in the link's frame), and ``meta.json`` with the sampled truth.
+handles: bar pulls, or knobs on ``KNOB_SHARE`` of the models), built from boxes and cylinders
+with trimesh, and written as a PartNet-Mobility-style directory: ``mobility.urdf`` (a root
+link ``base``, one link per rigid part, ``fixed``, ``revolute`` and ``prismatic`` joints whose
+``origin`` is a point on the axis), one OBJ per link under ``textured_objs/`` (in the link's
+frame), and ``meta.json`` with the sampled truth.
 
 Frame of every model: the origin on the floor under the middle of the carcass's footprint,
 +y up, +z out of the front. Nothing here reads ``.eac`` files: the benchmark fits the library's
@@ -22,6 +23,8 @@ from typing import Any
 
 import numpy as np
 import trimesh
+
+KNOB_SHARE = 0.3  # the share of models with knobs instead of bar pulls on every front
 
 # layouts the generator draws; which concept (if any) of the library can express each is the
 # benchmark's business, not the generator's
@@ -166,6 +169,39 @@ def _bar(center: tuple[float, float, float], length: float, r: float, off: float
     return [bar, *posts]
 
 
+def _knob(center: tuple[float, float, float], knob: dict[str, float]) -> list[Solid]:
+    """A mushroom knob on a front face at z = center.z: a stem, then the head in front of it."""
+    x, y, z = center
+    stem, depth = knob["stem"], knob["depth"]
+    return [
+        Solid("cyl", (x, y, z + stem / 2), (knob["neck"], stem), 2),
+        Solid("cyl", (x, y, z + stem + depth / 2), (knob["radius"], depth), 2),
+    ]
+
+
+def _pull(
+    center: tuple[float, float, float],
+    handle: dict[str, float],
+    vertical: bool,
+    knob: dict[str, float] | None,
+) -> list[Solid]:
+    """The front's handle: the knob when the model has knobs, else the bar."""
+    if knob is not None:
+        return _knob(center, knob)
+    return _bar(center, handle["length"], handle["radius"], handle["standoff"], vertical)
+
+
+def _knob_sizes(rng: np.random.Generator) -> dict[str, float]:
+    """Knob sizes from catalogue ranges: 24-40 mm heads, 14-22 mm deep, on 8-16 mm stems."""
+    radius = _u(rng, 0.012, 0.02)
+    return {
+        "radius": radius,
+        "depth": _u(rng, 0.014, 0.022),
+        "stem": _u(rng, 0.008, 0.016),
+        "neck": radius * _u(rng, 0.35, 0.5),
+    }
+
+
 def _handle(rng: np.random.Generator, span: float) -> dict[str, float]:
     """Bar pull sizes from catalogue ranges (96-320 mm hole spacing, 10-16 mm bars)."""
     length = min(_u(rng, 0.096, 0.32), span)
@@ -183,17 +219,17 @@ def _door(
     inset: float,
     dy: float,
     upper: float,
+    knob: dict[str, float] | None = None,
 ) -> None:
     """A door leaf over ``rect`` (x0, x1, y0, y1) with its back face at z0, hinged at the
-    ``hinge`` edge's back, a vertical bar ``inset`` from the free edge, ``dy`` above centre."""
+    ``hinge`` edge's back, a vertical bar (or a knob) ``inset`` from the free edge, ``dy``
+    above centre."""
     x0, x1, y0, y1 = rect
     xc, yc = (x0 + x1) / 2, (y0 + y1) / 2
     free = x1 if hinge == "left" else x0
     hx = free - inset if hinge == "left" else free + inset
     m.links[name] = [Solid("box", (xc, yc, z0 + t / 2), (x1 - x0, y1 - y0, t))]
-    m.links[name] += _bar(
-        (hx, yc + dy, z0 + t), handle["length"], handle["radius"], handle["standoff"], True
-    )
+    m.links[name] += _pull((hx, yc + dy, z0 + t), handle, True, knob)
     axis = (0.0, -1.0, 0.0) if hinge == "left" else (0.0, 1.0, 0.0)
     edge = x0 if hinge == "left" else x1
     m.joints.append(
@@ -211,9 +247,11 @@ def _drawer(
     side_gap: float,
     handle: dict[str, float],
     travel: float,
+    knob: dict[str, float] | None = None,
 ) -> None:
     """A drawer: front over ``rect``, an open tray of 12 mm boards behind it (``side_gap``
-    from each side of the front, 20 mm from its top and bottom), runners, a horizontal bar."""
+    from each side of the front, 20 mm from its top and bottom), runners, a horizontal bar (or
+    a knob) in the middle of the front."""
     x0, x1, y0, y1 = rect
     xc, yc = (x0 + x1) / 2, (y0 + y1) / 2
     b = 0.012
@@ -231,7 +269,7 @@ def _drawer(
         solids.append(
             Solid("box", (xc + s * (tw / 2 + 0.003), yc - th / 2 + 0.02, zc), (0.006, 0.024, depth))
         )
-    solids += _bar((xc, yc, z0 + t), handle["length"], handle["radius"], handle["standoff"], False)
+    solids += _pull((xc, yc, z0 + t), handle, False, knob)
     m.links[name] = solids
     m.joints.append(
         Joint(f"joint_{len(m.joints)}", "prismatic", name, (xc, yc, z0), (0.0, 0.0, 1.0), travel)
@@ -270,6 +308,13 @@ def sample_model(layout: str, seed: int) -> Model:
         "recess": recess,
         "front": t,
     }
+    # the handle type from a stream of its own, so that a bar model's sizes stay what they were
+    # before knobs were drawn
+    kind_rng = np.random.default_rng([seed, 7])
+    knob = _knob_sizes(kind_rng) if kind_rng.random() < KNOB_SHARE else None
+    params["handle_kind"] = "knob" if knob else "bar"
+    if knob:
+        params["knob"] = knob
     m = Model(f"{layout}_{seed}", layout, params)
     y0 = base_h
     m.links["body"] = _carcass(w, h, d, b, y0)
@@ -301,23 +346,68 @@ def sample_model(layout: str, seed: int) -> Model:
         hinge = "left" if rng.random() < 0.5 else "right"
         dh = _handle(rng, h - 0.1)
         params["door_handle"] = dh
-        inset = _u(rng, 0.04, 0.07)
+        inset = _u(rng, 0.04, 0.07) if knob is None else _u(kind_rng, 0.05, 0.07)
         dy = _u(rng, 0.0, 0.3) * (top - bottom) / 2 - 0.0
         dy = min(dy, (top - bottom) / 2 - dh["length"] / 2 - dh["radius"] - 0.01)
-        _door(m, "door", (x0, x1, bottom, top), z0, t, hinge, dh, inset, dy, math.radians(110))
+        _door(
+            m,
+            "door",
+            (x0, x1, bottom, top),
+            z0,
+            t,
+            hinge,
+            dh,
+            inset,
+            dy,
+            math.radians(110),
+            knob=knob,
+        )
         params.update(hinge=hinge, handle_inset=inset, handle_dy=dy)
     elif layout == "two_doors":
         dh = _handle(rng, h - 0.1)
-        inset = _u(rng, 0.04, 0.07)
-        _door(m, "door_l", (inner[0], -gap / 2, bottom, top), z0, t, "left", dh, inset, 0.0, 1.9)
-        _door(m, "door_r", (gap / 2, inner[1], bottom, top), z0, t, "right", dh, inset, 0.0, 1.9)
+        inset = _u(rng, 0.04, 0.07) if knob is None else _u(kind_rng, 0.05, 0.07)
+        _door(
+            m,
+            "door_l",
+            (inner[0], -gap / 2, bottom, top),
+            z0,
+            t,
+            "left",
+            dh,
+            inset,
+            0.0,
+            1.9,
+            knob=knob,
+        )
+        _door(
+            m,
+            "door_r",
+            (gap / 2, inner[1], bottom, top),
+            z0,
+            t,
+            "right",
+            dh,
+            inset,
+            0.0,
+            1.9,
+            knob=knob,
+        )
     elif drawers:
         n = int(layout[-1])
         fh = (top - bottom - (n - 1) * gap) / n
         for i in range(n):
             y1 = top - i * (fh + gap)
             _drawer(
-                m, f"drawer_{i}", (*inner, y1 - fh, y1), z0, t, depth, b + 0.013, handle, travel
+                m,
+                f"drawer_{i}",
+                (*inner, y1 - fh, y1),
+                z0,
+                t,
+                depth,
+                b + 0.013,
+                handle,
+                travel,
+                knob=knob,
             )
     elif layout == "drawers_side":
         n = 2 + int(rng.random() < 0.5)
@@ -334,6 +424,7 @@ def sample_model(layout: str, seed: int) -> Model:
                 b + 0.013,
                 handle,
                 travel,
+                knob=knob,
             )
     elif layout == "drawers_over_doors":
         fh = _u(rng, 0.12, 0.2)
@@ -341,24 +432,57 @@ def sample_model(layout: str, seed: int) -> Model:
         for i in range(2):
             x0 = inner[0] + i * (fw + gap)
             rect = (x0, x0 + fw, top - fh, top)
-            _drawer(m, f"drawer_{i}", rect, z0, t, depth, b + 0.013, handle, travel)
+            _drawer(m, f"drawer_{i}", rect, z0, t, depth, b + 0.013, handle, travel, knob=knob)
         dh = _u(rng, 0.096, min(0.32, h - fh - 0.1))
         dh_ = {"length": dh, "radius": handle["radius"], "standoff": handle["standoff"]}
-        inset = _u(rng, 0.04, 0.07)
+        inset = _u(rng, 0.04, 0.07) if knob is None else _u(kind_rng, 0.05, 0.07)
         door_top = top - fh - gap
         _door(
-            m, "door_l", (inner[0], -gap / 2, bottom, door_top), z0, t, "left", dh_, inset, 0.0, 1.9
+            m,
+            "door_l",
+            (inner[0], -gap / 2, bottom, door_top),
+            z0,
+            t,
+            "left",
+            dh_,
+            inset,
+            0.0,
+            1.9,
+            knob=knob,
         )
         _door(
-            m, "door_r", (gap / 2, inner[1], bottom, door_top), z0, t, "right", dh_, inset, 0.0, 1.9
+            m,
+            "door_r",
+            (gap / 2, inner[1], bottom, door_top),
+            z0,
+            t,
+            "right",
+            dh_,
+            inset,
+            0.0,
+            1.9,
+            knob=knob,
         )
         params.update(drawer_height=fh, door_handle=dh_, handle_inset=inset)
     else:  # drawer over door
         fh = _u(rng, 0.12, 0.2)
-        _drawer(m, "drawer_0", (*inner, top - fh, top), z0, t, depth, b + 0.013, handle, travel)
+        _drawer(
+            m,
+            "drawer_0",
+            (*inner, top - fh, top),
+            z0,
+            t,
+            depth,
+            b + 0.013,
+            handle,
+            travel,
+            knob=knob,
+        )
         hinge = "left" if rng.random() < 0.5 else "right"
         dh = _handle(rng, h - fh - 0.1)
-        _door(m, "door", (*inner, bottom, top - fh - gap), z0, t, hinge, dh, 0.05, 0.1, 1.9)
+        _door(
+            m, "door", (*inner, bottom, top - fh - gap), z0, t, hinge, dh, 0.05, 0.1, 1.9, knob=knob
+        )
     for j in m.joints:  # a random state between closed and 80 % open
         m.q[j.name] = float(rng.uniform(0.0, 0.8 * j.upper))
     return m

@@ -2,7 +2,8 @@
 
 Run from the repository root: ``.venv/bin/python docs/storage_furniture_gallery.py``. Each layout
 is drawn by ``eacc show --png`` with its parameters and a few fronts opened, so a reader sees the
-drawers' trays and the doors' hinge sides.
+drawers' trays and the doors' hinge sides; four of them show the other handle types (knobs,
+recessed pulls, bow handles) that ``handle_kind`` chooses.
 """
 
 from __future__ import annotations
@@ -17,7 +18,13 @@ OUT = ROOT / "docs" / "gallery"
 # name -> (parameters, joints): the layouts the issue lists, each on a plinth or on legs
 LAYOUTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
     "stack4": (
-        {"rows": "4", "cols": "1", "doors": "0", "size": "600mm,900mm,480mm"},
+        {
+            "rows": "4",
+            "cols": "1",
+            "doors": "0",
+            "size": "600mm,900mm,480mm",
+            "handle_kind": "knob",
+        },
         {"drawer[1][0].slide": "250mm"},
     ),
     "row3": (
@@ -32,7 +39,13 @@ LAYOUTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
         {"drawer[0][1].slide": "250mm"},
     ),
     "grid2x2": (
-        {"rows": "2", "cols": "2", "doors": "0", "size": "900mm,700mm,480mm"},
+        {
+            "rows": "2",
+            "cols": "2",
+            "doors": "0",
+            "size": "900mm,700mm,480mm",
+            "handle_kind": "recessed",
+        },
         {"drawer[0][0].slide": "200mm", "drawer[1][1].slide": "300mm"},
     ),
     "drawer_over_door": (
@@ -42,6 +55,7 @@ LAYOUTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
             "doors": "1",
             "hinge_side": "right",
             "size": "600mm,720mm,560mm",
+            "handle_kind": "knob",
         },
         {"door[0].hinge": "60deg", "drawer[0][0].slide": "150mm"},
     ),
@@ -50,7 +64,13 @@ LAYOUTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
         {"door[0].hinge": "50deg", "door[1].hinge": "80deg", "drawer[0][1].slide": "200mm"},
     ),
     "two_doors": (
-        {"rows": "0", "doors": "2", "size": "800mm,900mm,500mm", "stand": "legs"},
+        {
+            "rows": "0",
+            "doors": "2",
+            "size": "800mm,900mm,500mm",
+            "stand": "legs",
+            "handle_kind": "curved",
+        },
         {"door[1].hinge": "70deg"},
     ),
     "door_beside_blind": (

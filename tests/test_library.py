@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 import grace_dsl as eac
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.gripper import Gripper
+from grace_dsl.runtime.verify import draw_params
 
 
 def _library_tables():  # type: ignore[no-untyped-def]
@@ -118,11 +120,10 @@ STRUCTURES = ["Plinth", "Legs"]  # furniture parts with nothing to move: no acti
 WRITTEN = PARTS + OBJECTS + STRUCTURES
 PANDA_MAX_WIDTH = 0.080
 DRAWS = 20
-#: concepts whose independent ranges leave fewer than 10% of uniform draws valid: a defect to fix
-#: in the concept (sizes that depend on each other drawn as fractions), held here at what it is
-LOW_YIELD = {
-    "StorageFurniture": "about 2%: a door handle longer than its leaf, travel beyond the tray",
-}
+#: concepts whose draws, repaired by the verifier's sampler (runtime/draws.py), are still mostly
+#: invalid: a defect to fix in the concept. StorageFurniture was here at about 2% of independent
+#: uniform draws; repaired, nearly all of its draws are valid.
+LOW_YIELD: dict[str, str] = {}
 
 
 def _concepts(lib: eac.Library) -> list[str]:
@@ -164,13 +165,17 @@ def _draw(c: eac.Concept, rng: np.random.Generator) -> dict[str, object]:
     return out
 
 
-def _instances(c: eac.Concept, seed: int = 0, draws: int = DRAWS) -> list[eac.Instance]:
-    """The defaults and the random draws (``draws`` of them) that satisfy the requirements."""
+def _instances(
+    c: eac.Concept, seed: int = 0, draws: int = DRAWS, repair: bool = False
+) -> list[eac.Instance]:
+    """The defaults and the random draws (``draws`` of them) that satisfy the requirements;
+    ``repair``: uniform draws repaired as ``eacc verify`` draws them (``runtime/draws.py``)."""
     rng = np.random.default_rng(seed)
     out = [c.instantiate()]
     for _ in range(draws):
+        values = draw_valid(c, rng, c.params, draw_params) if repair else _draw(c, rng)
         try:
-            out.append(c.instantiate(**_draw(c, rng)))
+            out.append(c.instantiate(**values))
         except eac.RequirementError:
             continue
     return out
@@ -178,13 +183,14 @@ def _instances(c: eac.Concept, seed: int = 0, draws: int = DRAWS) -> list[eac.In
 
 @pytest.mark.parametrize("name", WRITTEN)
 def test_instantiates_over_its_ranges(lib: eac.Library, name: str) -> None:
-    """At least 10% of uniform draws inside the ranges are valid instances (``eacc verify``
-    reports the same rate; SunkenDoor's, the lowest, is about 15%)."""
+    """Most draws inside the ranges, repaired as ``eacc verify`` repairs them, are valid
+    instances (at least 80%; of independent uniform draws, without repair, SunkenDoor's 15%
+    was the lowest rate and StorageFurniture's about 2%)."""
     c = lib[name]
-    insts = _instances(c, draws=5 * DRAWS)
+    insts = _instances(c, draws=2 * DRAWS, repair=True)
     valid = len(insts) - 1
-    least = 1 if name in LOW_YIELD else DRAWS // 2
-    assert valid >= least, f"only {valid} of {5 * DRAWS} random draws of {name} are valid"
+    least = 1 if name in LOW_YIELD else int(0.8 * 2 * DRAWS)
+    assert valid >= least, f"only {valid} of {2 * DRAWS} repaired draws of {name} are valid"
     for inst in insts:
         for g in inst.grasp_names:  # a repeated part's copies the instance has
             pose = inst.grasp(g)
@@ -395,3 +401,36 @@ def test_library_table_shows_modes_senses_and_units(lib: eac.Library) -> None:
     assert "`handle.throw` (rad)" in rows["Safe"]
     assert "cabinet (`cabinets.eac`)" in rows["Safe"]
     assert "Cuboid" not in rows  # primitives are documented in primitives.md
+
+
+def test_repaired_draws_stay_in_range_and_follow_the_seed(lib: eac.Library) -> None:
+    """The verifier's repair changes values only to other values of their ranges, is a function
+    of the seed, and turns StorageFurniture's mostly invalid uniform draws into valid ones."""
+    c = lib["StorageFurniture"]
+    first = [draw_valid(c, np.random.default_rng(s), c.params, draw_params) for s in range(12)]
+    again = [draw_valid(c, np.random.default_rng(s), c.params, draw_params) for s in range(12)]
+    assert first == again
+    specs = {p.name: p for p in c.params}
+    valid = 0
+    for values in first:
+        for name, v in values.items():
+            p = specs[name]
+            if p.kind in ("num", "vec"):
+                lo, hi = np.atleast_1d(p.lo), np.atleast_1d(p.hi)
+                assert np.all(np.atleast_1d(v) >= lo - 1e-12) and np.all(
+                    np.atleast_1d(v) <= hi + 1e-12
+                )
+        try:
+            c.instantiate(**values)
+            valid += 1
+        except eac.RequirementError:
+            pass
+    raw = 0
+    rng = np.random.default_rng(0)
+    for _ in range(12):
+        try:
+            c.instantiate(**draw_params(c, rng))
+            raw += 1
+        except eac.RequirementError:
+            pass
+    assert valid >= 10 and valid > raw, (valid, raw)

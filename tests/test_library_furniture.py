@@ -5,6 +5,7 @@ drawer's `open` moves that drawer and no other, and the fit benchmark fits a gen
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -12,7 +13,9 @@ import numpy as np
 import pytest
 
 import grace_dsl as eac
+from grace_dsl.runtime.gripper import Gripper, finger_points
 from grace_dsl.runtime.kinematics import Kinematics
+from grace_dsl.runtime.verify import PENETRATION
 
 # name -> (parameters, drawers, doors): the layouts issue 16 lists, on a plinth or on legs
 LAYOUTS = {
@@ -100,6 +103,44 @@ def test_doors_hinge_on_their_side(concept: eac.Concept, params: dict, sides: li
         assert np.sign(opened[0] - centre[0]) == (-1 if side == "left" else 1)
 
 
+# eacc verify's failing draw, reduced: two doors with recessed pulls, the other door opened fully
+# and this one barely (door [0] hinged on the right put its leaf over door [1]'s free edge)
+PUSH_EDGE_PAIR = {
+    "size": (0.728, 1.267, 0.5615),
+    "rows": 1,
+    "cols": 1,
+    "doors": 2,
+    "board": 0.025,
+    "front_thickness": 0.025,
+    "handle_kind": "recessed",
+    "door_handle_inset": 0.139,
+    "door_handle_y": -0.248,
+}
+
+
+def test_a_pair_of_doors_hinged_in_the_middle_is_refused(concept: eac.Concept) -> None:
+    with pytest.raises(eac.GraceError, match="outer edges"):
+        concept.instantiate(**PUSH_EDGE_PAIR, hinge_side="right")
+
+
+@pytest.mark.parametrize(("pushed", "other"), [(1, 0), (0, 1)])
+def test_push_edge_clears_the_other_open_door(
+    concept: eac.Concept, pushed: int, other: int
+) -> None:
+    """The closed fingertips pushing a door's free edge touch that door and enter nothing more
+    than verify's tolerance, whatever the other door of the pair is opened to."""
+    pads = finger_points(Gripper.panda(), 0.0)
+    base = concept.instantiate(**PUSH_EDGE_PAIR, hinge_side="left")
+    for q in (0.0, math.radians(90), math.radians(110)):
+        inst = base.with_joints(
+            {f"door[{other}].hinge": q, f"door[{pushed}].hinge": math.radians(7.5)}
+        )
+        poses = inst.grasps(f"door[{pushed}].push_edge", 21)
+        d = np.array([inst.sdf(pads @ g[:3, :3].T + g[:3, 3]).min() for g in poses])
+        assert d.min() >= -PENETRATION  # into no shape: not the other door, not the pull's cut
+        assert d.max() <= PENETRATION  # and on the leaf's face (the SDF follows the hinge)
+
+
 def test_a_drawers_open_moves_that_drawer(concept: eac.Concept) -> None:
     inst = concept.instantiate(rows=2, cols=2, doors=0)
     before = {k: inst.link_pose(k) for k in inst.links}
@@ -138,3 +179,24 @@ def test_fit_smoke(tmp_path: Path) -> None:
         assert p["axis_deg"] < 2.0 and p["origin_mm"] < 10.0
         if p["kind"] == "revolute":
             assert p["hinge_fit"] == p["hinge_true"]
+
+
+@pytest.mark.slow
+def test_the_handle_kind_is_read_off_the_meshes(tmp_path: Path) -> None:
+    """The generator puts knobs on some models (bar pulls on the rest), and the fit reads the
+    type off each moving link's mesh, as a perception module classifies a handle: right on
+    every model, and a knob model's fronts carry no bar."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import bench_furniture_fit as bench
+    import furniture_gen as gen
+
+    models = gen.sample_models(8, 0)
+    kinds = [m.params["handle_kind"] for m in models]
+    assert set(kinds) == {"bar", "knob"}
+    for model in models:
+        layout = bench.Layout.of_urdf(gen.write_model(model, tmp_path))
+        assert layout.handle_kind == model.params["handle_kind"], model.name
+        assert all(o["handle_kind"] == layout.handle_kind for o in layout.options())
+        bars = bench.recipe_for(layout, layout.options()[0])
+        reads_bar = any(f.name in ("drawer_handle", "door_handle") for f in bars)
+        assert reads_bar == (layout.handle_kind == "bar")

@@ -319,7 +319,7 @@ class _Expander:
                 name=part_name,
                 concept=v.concept,
                 args=args,
-                at=at,
+                at=_mount(at, self._x(v.at, env), name, part_name) if v.at is not None else at,
                 index=(),
                 concept_span=v.concept_span,
                 selector=None,
@@ -446,6 +446,10 @@ class _Expander:
                 num = ast.Number(str(abs(k)), None, e.span)
                 return num if k >= 0 else ast.Unary("-", num, e.span)
             return e
+        if isinstance(e, ast.Index) and isinstance(e.index, ast.String):
+            obj = self._x(e.obj, env)  # `handle["bar"]`: option "bar" of variant part `handle`
+            if isinstance(obj, ast.Name):
+                return ast.Name(f"{obj.id}{VARIANT_SEP}{e.index.value}", e.span)
         if isinstance(e, ast.Index):
             obj = self._x(e.obj, env)
             at = const_int(self._x(e.index, env), env)
@@ -638,6 +642,24 @@ class _Expander:
         return out
 
 
+def _mount(shared: ast.Expr | None, own: ast.Expr, name: str, alt: str) -> ast.Expr:
+    """An option's pose: the shared mounting frame, then the option's own ``at``, in which the
+    part's name (``handle.stem``) reads this option's members (``handle@knob.stem``)."""
+    own = rename_part(own, name, alt)
+    return own if shared is None else ast.Binary("*", shared, own, own.span)
+
+
+def rename_part(e: ast.Expr, name: str, alt: str) -> ast.Expr:
+    """``e`` with every read of part ``name``'s members (``name.x``) made a read of ``alt``'s."""
+    if isinstance(e, ast.Member) and isinstance(e.obj, ast.Name) and e.obj.id == name:
+        return replace(e, obj=ast.Name(alt, e.obj.span))
+    kids = ast._children(e)
+    new = [rename_part(k, name, alt) for k in kids]
+    if all(a is b for a, b in zip(new, kids, strict=True)):
+        return e
+    return ast.rebuild(e, new)
+
+
 def _when(cond: Cond, e: ast.Expr) -> ast.Expr:
     """``e`` as a requirement of a masked copy: true when the copy is absent."""
     for param, k in reversed(cond):
@@ -701,6 +723,11 @@ def _facts(cond: ast.Expr, holds: bool) -> tuple[_Fact, ...]:
     if k is None:
         return ()
     return {">": ((left.id, k),), ">=": ((left.id, k - 1),)}.get(op, ())
+
+
+def facts_of(cond: ast.Expr, holds: bool) -> tuple[_Fact, ...]:
+    """What ``cond`` being ``holds`` says about counts and choices (for later passes)."""
+    return _facts(cond, holds)
 
 
 def _implied(need: _Fact, facts: Iterable[_Fact]) -> bool:

@@ -12,8 +12,10 @@ import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from grace_dsl.compiler.expand import VARIANT_SEP, expand
+from grace_dsl.compiler import variants
+from grace_dsl.compiler.expand import VARIANT_SEP, expand, split_indexed
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, did_you_mean, error
 from grace_dsl.lang.parser import KEYWORDS, parse
@@ -140,6 +142,7 @@ def resolve(
     diags += _import_cycles(prog)
     diags += _collect_concepts(prog)
     diags += _visibility(prog)
+    diags += _variant_pass(prog)
     for entry in prog.concepts.values():
         diags += _check_members(entry, prog)
     diags += _part_cycles(prog)
@@ -331,6 +334,7 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
     c, file = entry.decl, entry.file
     diags: list[Diagnostic] = []
     seen: dict[str, ast.Span] = {}
+    seen_base: set[tuple[str, ast.Span]] = set()
     dropped = prog.dropped(file)
     for m in flat_members(c):
         if c.kind == "primitive" and not isinstance(m, (ast.Param, ast.Require)):
@@ -347,6 +351,12 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
             continue
         name = m.name
         span = getattr(m, "name_span", m.span)
+        source = _source_name(m)
+        if source == BASE_LINK and isinstance(m, (ast.Part, ast.Link)):
+            if (source, span) not in seen_base:  # the copies and options share one source
+                seen_base.add((source, span))
+                diags.append(_base_clash(m, span))
+            continue
         if name in KEYWORDS:  # only reachable for names the parser let through
             diags.append(
                 error(
@@ -416,6 +426,43 @@ def _check_members(entry: ast.Concept | ConceptEntry, prog: Program) -> list[Dia
                     )
     diags += _check_link_tree(c, links, dropped)
     return _once_per_span(diags)
+
+
+def _variant_pass(prog: Program) -> list[Diagnostic]:
+    """Reads, pass-through arguments and grasps of variant parts, made concrete (variants.py)."""
+
+    def concept(name: str) -> ast.Concept | None:
+        entry = prog.concepts.get(name)
+        return entry.decl if entry is not None else None
+
+    scope = variants.Scope(concept)
+    diags: list[Diagnostic] = []
+    for name, entry in list(prog.concepts.items()):
+        if variants.uses_variants(entry.decl, scope):
+            decl, more = variants.rewrite_concept(entry.decl, scope)
+            prog.concepts[name] = ConceptEntry(decl, entry.file)
+            diags += more
+    return diags
+
+
+def _source_name(m: Any) -> str:
+    """The name as written: ``base`` for ``base[2]`` (a loop's copy) or ``base@legs`` (an
+    option of a variant part), whose unrolled names escape the checks on plain names."""
+    name = m.variant[0] if isinstance(m, ast.Part) and m.variant is not None else m.name
+    split = split_indexed(name)
+    return split[0] if split is not None else name
+
+
+def _base_clash(m: ast.Part | ast.Link, span: ast.Span) -> Diagnostic:
+    """A part or link named ``base``: the root link of every concept has that name, so joints
+    (``revolute(base -> door)``) and the part's own links (``base.frame``) would be ambiguous."""
+    kind = "part" if isinstance(m, ast.Part) else "link"
+    return error(
+        "E130",
+        f"a {kind} cannot be named `base`: `base` is the root link of every concept",
+        span,
+        "rename it for what it is, e.g. `plinth`, `stand` or `carcass`",
+    )
 
 
 def _once_per_span(diags: list[Diagnostic]) -> list[Diagnostic]:

@@ -7,7 +7,7 @@ what lets the formatter promise ``parse(fmt(x)) == parse(x)``.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Union
 
 
@@ -224,13 +224,17 @@ class Part:
 
 @dataclass(frozen=True)
 class Variant:
-    """One alternative of a variant part: ``"knob" => RoundKnob(radius: 20mm)``."""
+    """One alternative of a variant part: ``"knob" => RoundKnob(radius: 20mm) at POSE``.
+
+    ``at`` is the option's own mounting: where its frame sits in the part's shared frame (the
+    mounting frame on the host's surface); the part's name in it reads this option's members."""
 
     value: str
     concept: str
     args: tuple[Arg, ...]
     span: Span = _span()
     concept_span: Span = _span()
+    at: Expr | None = None
 
 
 @dataclass(frozen=True)
@@ -405,3 +409,24 @@ def _children(node: Any) -> list[Any]:
     if isinstance(node, Index):
         return [node.obj, node.index]
     return []
+
+
+def rebuild(node: Any, kids: list[Any]) -> Any:
+    """``node`` with its sub-expressions (in ``_children`` order) replaced by ``kids``."""
+    if isinstance(node, Unary):
+        return replace(node, operand=kids[0])
+    if isinstance(node, Binary):
+        return replace(node, left=kids[0], right=kids[1])
+    if isinstance(node, Call):
+        return replace(
+            node, args=tuple(replace(a, value=v) for a, v in zip(node.args, kids, strict=True))
+        )
+    if isinstance(node, Vector):
+        return replace(node, items=tuple(kids))
+    if isinstance(node, Member):
+        return replace(node, obj=kids[0])
+    if isinstance(node, IfExpr):
+        return replace(node, cond=kids[0], then=kids[1], orelse=kids[2])
+    if isinstance(node, Index):
+        return replace(node, obj=kids[0], index=kids[1])
+    return node

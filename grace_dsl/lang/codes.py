@@ -43,6 +43,8 @@ CODES: dict[str, str] = {
     "E126": "variant part does not match its choice",
     "E127": "an option of a variant part lacks a grasp the host uses",
     "E128": "reads a repeated copy that may be absent",
+    "E129": "an option of a variant part lacks a parameter the host reads",
+    "E130": "a part or link named like the root link `base`",
     # types, units and values
     "E201": "unknown type",
     "E202": "type mismatch",

@@ -9,6 +9,7 @@ tree is unchanged, that formatting is idempotent and that every comment survives
 
 from __future__ import annotations
 
+import re
 import sys
 import threading
 from collections.abc import Sequence
@@ -144,7 +145,12 @@ def _unary_prefix(e: ast.Unary) -> str:
 
 
 def _arg_prefix(name: str | None) -> str:
-    return f"{name}: " if name else ""
+    return f"{arg_name(name)}: " if name else ""
+
+
+def arg_name(name: str) -> str:
+    """``handle@bar.length`` (one option's parameter) as written: ``handle["bar"].length``."""
+    return re.sub(r"@([^.]+)", lambda m: f'["{m.group(1)}"]', name)
 
 
 # ---- expressions over several lines ------------------------------------------------------------
@@ -299,7 +305,10 @@ def _variant_segments(d: ast.Part) -> list[Segment]:
     arms: list[Segment] = []
     for i, v in enumerate(d.variants):
         last = i == len(d.variants) - 1
-        arms.append([f"{quote(v.value)} => ", ast.Call(v.concept, v.args), "" if last else ","])
+        mount: Segment = [" at ", v.at] if v.at is not None else []
+        arms.append(
+            [f"{quote(v.value)} => ", ast.Call(v.concept, v.args), *mount, "" if last else ","]
+        )
     return [head, *arms, ["}"], *_placement(d.at)]
 
 
@@ -354,7 +363,12 @@ def _code_lines(d: Decl, indent: int) -> list[str]:
         lines = _layout_parts(segs[0], indent)
         for seg in segs[1 : 1 + arms]:
             lines += _layout_parts(seg, indent + INDENT)
-        lines.append(" " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :]))
+        close = " " * indent + "}" + "".join(" " + _flat(seg) for seg in segs[2 + arms :])
+        if len(close) <= WIDTH:
+            return [*lines, close]
+        lines.append(" " * indent + "}")  # a long placement continues below the brace
+        for seg in segs[2 + arms :]:
+            lines += _layout_parts(seg, indent + INDENT)
         return lines
     lines = _layout_parts(segs[0], indent)
     for seg in segs[1:]:

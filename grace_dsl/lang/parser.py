@@ -308,13 +308,15 @@ class _Builder(Transformer):
         return self._expr(ast.Index(obj, index, span), obj, index)
 
     def variant(self, c: list[Any]) -> ast.Variant:
-        value, concept, args = c
+        value, concept, args, *rest = c
+        at = rest[0].value if rest and isinstance(rest[0], _Clause) else None
         return ast.Variant(
             _string_value(value),
             concept.value,
             tuple(args or ()),
-            self._span(value, concept),
+            self._span(value, at or concept),
             _tok_span(self.path, concept),
+            at,
         )
 
     def variant_part_decl(self, c: list[Any]) -> ast.Part:
@@ -699,7 +701,8 @@ class _Builder(Transformer):
             raise _BadNumber(
                 error(
                     "E002",
-                    "an argument's name must be a name, such as `length` or `handle.length`",
+                    "an argument's name must be a name, such as `length`, `handle.length` or "
+                    '`handle["bar"].length`',
                     target.span,
                     "write `name: value`",
                 )
@@ -710,7 +713,14 @@ class _Builder(Transformer):
 def _dotted(e: Any) -> str | None:
     """``a.b.c`` for a name or a chain of member accesses on a name; None for anything else."""
     fields: list[str] = []
-    while isinstance(e, ast.Member):
+    while isinstance(e, (ast.Member, ast.Index)):
+        if isinstance(e, ast.Index):  # `handle["bar"].length`: one option of a variant part
+            if not (isinstance(e.index, ast.String) and fields):
+                return None
+            inner = _dotted(e.obj)
+            if inner is None:
+                return None
+            return ".".join([f"{inner}@{e.index.value}", *reversed(fields)])
         fields.append(e.field)
         e = e.obj
     if not isinstance(e, ast.Name):

@@ -363,7 +363,7 @@ def instance_samples(
     ]
     if not pieces:
         raise ValueError(f"{inst.concept.name} has no shapes to sample")
-    areas = np.array([_piece_area(p) for p in pieces])
+    areas = np.array([piece_area(p) for p in pieces])
     worlds = [motions[p.link] @ p.pose for p in pieces]
     rng = np.random.default_rng(seed)
     kept_pts: list[np.ndarray] = []
@@ -372,7 +372,7 @@ def instance_samples(
     for _ in range(50):
         want = math.ceil(1.1 * (n - total) / max(rate, 0.02)) + 16
         counts = rng.multinomial(want, areas / areas.sum())
-        batch = [_piece_samples(piece, int(k), rng) for piece, k in zip(pieces, counts)]
+        batch = [piece_samples(piece, int(k), rng) for piece, k in zip(pieces, counts)]
         pts = np.concatenate([_apply(w, b[0]) for w, b in zip(worlds, batch)])
         nrm = np.concatenate([b[1] @ w[:3, :3].T for w, b in zip(worlds, batch)])
         # outside every other shape, and not on a face that touches another shape's face
@@ -389,7 +389,8 @@ def instance_samples(
     return np.concatenate(kept_pts)[order], np.concatenate(kept_nrm)[order]
 
 
-def _piece_area(piece: Piece) -> float:
+def piece_area(piece: Piece) -> float:
+    """A piece's surface area: analytic for a primitive, the mesh's for a boolean result."""
     from grace_dsl.geometry import surface_area
 
     if piece.primitive != "mesh":
@@ -397,7 +398,8 @@ def _piece_area(piece: Piece) -> float:
     return float(piece.mesh.area)
 
 
-def _piece_samples(piece: Piece, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def piece_samples(piece: Piece, k: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``k`` surface points and outward normals in the piece's frame, either kind of piece."""
     from grace_dsl.geometry import sample_surface
 
     if piece.primitive != "mesh":

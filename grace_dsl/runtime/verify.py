@@ -2,7 +2,8 @@
 
 A concept can compile, type-check and still be wrong: a grasp a centimetre off its handle, a width
 the hand cannot open to, an action whose force drives the joint backwards. ``verify_concept`` draws
-parameters uniformly inside their ranges (rejecting draws that break a ``require``), places each
+parameters uniformly inside their ranges (repairing draws that break a ``require`` by redrawing
+parameters it depends on, ``runtime/draws.py``, and rejecting those still broken), places each
 instance at a random world pose, and at its joints closed (q = 0) and at random values checks,
 for every grasp family (parts' grasps included) at several free-parameter values:
 
@@ -60,6 +61,7 @@ import numpy as np
 
 from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime.concept import ParamSpec
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import (
     EvaluationError,
     GraceError,
@@ -356,7 +358,7 @@ def verify_concept(
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
         attempts += 1
-        values = draw_params(concept, rng, specs)
+        values = draw_valid(concept, rng, specs, draw_params, ranges)
         pose = random_pose(rng)
         try:
             inst = concept.instantiate(pose=pose, ranges=ranges, params=values)

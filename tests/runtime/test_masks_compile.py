@@ -68,11 +68,12 @@ HOST = "use furniture.{Drawer, BoardCabinet}\nconcept T {\n"
         ("part d = Drawer(handle.length: 590mm)", "Drawer fails its requirement (the handle fits"),
         (
             "part d = Drawer(handle.standoff: 22mm)",
-            "Drawer's part `handle` (StraightHandle) fails its requirement (a finger fits",
+            # the option whose requirement fails, by the name an argument binds it with
+            "Drawer's part `handle@bar` (StraightHandle) fails its requirement (a finger fits",
         ),
         (
             "part c = BoardCabinet(door.handle.standoff: 22mm)",
-            "BoardCabinet's part `door.handle` (StraightHandle) fails",
+            "BoardCabinet's part `door.handle@bar` (StraightHandle) fails",
         ),
     ],
 )
@@ -87,3 +88,17 @@ def test_dotted_arguments_are_checked_against_requirements(
 def test_dotted_arguments_that_fit_pass(tmp_path: Path) -> None:
     assert diagnostics(tmp_path, "part d = Drawer(handle.length: 200mm)", HOST) == []
     assert diagnostics(tmp_path, "part c = BoardCabinet(door.handle.length: 300mm)", HOST) == []
+
+
+@pytest.mark.slow
+def test_dotted_arguments_reach_a_variant_part_two_levels_down(tmp_path: Path) -> None:
+    """``c.door.handle.length`` passes through two parts without variants of their own (T places
+    BoardCabinet, which places DoorLeaf, whose handle is the variant): the pass still binds it."""
+    head = HOST + "part c = BoardCabinet(door.handle.length: 300mm)\n}\nconcept U {\n"
+    assert diagnostics(tmp_path, "part t = T(c.door.handle.radius: 12mm)", head) == []
+    found = diagnostics(tmp_path, "part t = T(c.door.handle.nope: 250mm)", head)
+    assert [c for c, _ in found] == ["E116"], found
+    assert "variant part `c.door.handle`" in found[0][1]
+    found = diagnostics(tmp_path, "part t = T(c.door.handle.length: 250mm)", head)
+    assert [c for c, _ in found] == ["E116"], found  # T binds it already
+    assert "is already given by T" in found[0][1]

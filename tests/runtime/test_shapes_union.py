@@ -12,6 +12,7 @@ import pytest
 import trimesh
 
 import grace_dsl as eac
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import RequirementError
 from grace_dsl.runtime.shapes import instance_mesh_concat, instance_meshes
 from grace_dsl.runtime.verify import concept_seed, draw_params, random_pose
@@ -28,11 +29,18 @@ def _concepts() -> list[str]:
 
 
 def random_instance(concept: eac.Concept, seed: int) -> eac.Instance:
-    """A draw inside every range that satisfies the requirements, at random joints and pose."""
+    """A draw inside every range that satisfies the requirements, at random joints and pose:
+    uniform first, then repaired as ``eacc verify`` repairs its draws (about 2% of uniform
+    draws of ``StorageFurniture`` are valid, and 200 uniform tries found none)."""
     rng = np.random.default_rng(seed)
-    for _ in range(200):
+    for attempt in range(400):
         try:
-            inst = concept.instantiate(pose=random_pose(rng), **draw_params(concept, rng))
+            params = (
+                draw_params(concept, rng)
+                if attempt < 200
+                else draw_valid(concept, rng, concept.params, draw_params)
+            )
+            inst = concept.instantiate(pose=random_pose(rng), params=params)
         except RequirementError:
             continue
         joints = {

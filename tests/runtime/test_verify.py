@@ -287,15 +287,21 @@ concept NAME {
 
 
 def test_tight_requirements_are_redrawn_and_reported(tmp_path: Path) -> None:
+    """A narrow band (10% of uniform draws) is reached by repairing each draw (redrawing `a`,
+    the parameter the failing requirement reads), so no draw is rejected; a band no value is in
+    stops at the attempt cap and says so in the report."""
     text = "use primitives.{Cuboid}\n\n" + TIGHT.replace("NAME", "Tight")
-    text += TIGHT.replace("NAME", "Tighter").replace("LIMIT", "0.5mm")
+    only_default = 'require a == 50.1mm "only the default (no random draw is)"'
+    band = 'require a > 50mm and a < 50mm + LIMIT "a is inside a narrow band (no range end is)"'
+    assert band in TIGHT
+    text += TIGHT.replace("NAME", "Empty").replace(band, only_default)
     lib = eac.compile_paths([write(tmp_path, "tight.eac", text.replace("LIMIT", "10mm"))])
-    report = verify_concept(lib["Tight"], draws=5, seed=0)  # 10% of the draws are valid
+    report = verify_concept(lib["Tight"], draws=5, seed=0)
     assert report.ok and report.note == ""
-    assert report.draws == 5 and report.rejected == report.attempts - 5 > 10
-    few = verify_concept(lib["Tighter"], draws=10, seed=0)  # 0.5%: the cap stops it
-    assert few.draws < 10 and few.attempts == 50 * 10
-    assert "satisfy the requirements" in few.note
+    assert report.draws == 5 and report.attempts == 5 and report.rejected == 0
+    none = verify_concept(lib["Empty"], draws=2, seed=0)
+    assert none.draws == 0 and none.attempts == 50 * 2 and none.rejected == 100
+    assert "only 0 of 100 draws satisfy the requirements" in none.note
 
 
 # ---- the report ---------------------------------------------------------------------------
