@@ -216,8 +216,11 @@ def plan_placed(
 
 # Bases tried around the action's hand path (``path_bases``): distances from the path's middle
 # (metres; the Panda has most room 0.4-0.7 m out) and bearings off the object's front (radians)
+# (beside the object too: a lid's edge swings up in a plane a robot at its side faces)
 PATH_RADII = (0.5, 0.65, 0.8)
 PATH_BEARINGS = tuple(math.radians(a) for a in (-60, -35, -12, 12, 35, 60))
+SIDE_BEARINGS = tuple(math.radians(a) for a in (-120, -90, 90, 120))
+SIDE_RADII = (0.5, 0.65)
 PATH_SAMPLES = 9  # poses along the hand path checked by IK per base
 PATH_IK = IKOptions(max_restarts=0, time_limit=0.05)
 
@@ -267,7 +270,8 @@ def path_bases(
 ) -> list[FloatArray]:
     """Base poses for the whole of ``action``, not only its grasp: ``first`` and poses around
     the middle of the hand's path (``PATH_RADII`` out, at ``PATH_BEARINGS`` off the direction
-    from the path's middle to ``first``, facing the path's middle, ``HEIGHT`` below it), those
+    from the path's middle to ``first``, and beside it at ``SIDE_BEARINGS``; facing the path's
+    middle, ``HEIGHT`` below it), those
     whose home posture touches the object left out, ordered by :func:`reach_score` (``first``
     ahead on ties; alone when the whole path is in reach from it). Deterministic."""
     paths = hand_paths(inst, action, to)
@@ -277,16 +281,27 @@ def path_bases(
     out = np.asarray(first, float)
     ahead = math.atan2(out[1, 3] - middle[1], out[0, 3] - middle[0])
     candidates = [out]
-    for radius in PATH_RADII:
-        for bearing in PATH_BEARINGS:
-            a = ahead + bearing
-            x, y = middle[0] + radius * math.cos(a), middle[1] + radius * math.sin(a)
-            pose = base_pose(x, y, math.atan2(middle[1] - y, middle[0] - x))
-            pose[2, 3] = middle[2] - HEIGHT
-            candidates.append(pose)
+    candidates += _ring(middle, ahead, PATH_RADII, PATH_BEARINGS)
+    candidates += _ring(middle, ahead, SIDE_RADII, SIDE_BEARINGS)
     if max(reach_score(robot, path, out) for path in paths) >= 1.0:
         return [out]  # the whole path is in reach from where the grasps put the base
     free = [c for c in candidates if not collision_scene(robot, inst, base=c).collides(robot.home)]
     scores = [max(reach_score(robot, path, c) for path in paths) for c in free]
     order = sorted(range(len(free)), key=lambda k: (-scores[k], k))
     return [free[k] for k in order] or [first]
+
+
+def _ring(
+    middle: FloatArray, ahead: float, radii: tuple[float, ...], bearings: tuple[float, ...]
+) -> list[FloatArray]:
+    """Base poses ``radii`` from ``middle`` at ``bearings`` off the direction ``ahead``, facing
+    ``middle``, ``HEIGHT`` below it."""
+    out = []
+    for radius in radii:
+        for bearing in bearings:
+            a = ahead + bearing
+            x, y = middle[0] + radius * math.cos(a), middle[1] + radius * math.sin(a)
+            pose = base_pose(x, y, math.atan2(middle[1] - y, middle[0] - x))
+            pose[2, 3] = middle[2] - HEIGHT
+            out.append(pose)
+    return out

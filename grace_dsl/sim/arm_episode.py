@@ -70,6 +70,7 @@ MIN_STAGE = 0.08
 # Plans executed one after another at most: each follows the part as far as the arm reaches,
 # lets go and backs off; the next is planned from where the part and the arm then are
 STAGES = 3
+PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
 PATH_FIRST = 3  # base poses scored on the hand's path tried (interleaved with the fixed shifts)
 OPEN_ENOUGH = 0.55  # fraction of the range past which an open stops staging (strict: half)
 CLOSE_ENOUGH = 0.025  # fraction of the range within which a close stops staging (strict: 5 %)
@@ -188,15 +189,41 @@ def plan_episode(
             ).plan
         return plan_action(robot, inst, task.action, to, base=base, q_start=q_start, seed=seed)
     except ActionPlanningError as exc:
-        if exc.value is None:
-            raise
-        partial = start + REPLAN_AT * (float(exc.value) - start)
-        if (partial - start) * task.sign < MIN_STAGE * span:
-            raise
         where = base if base is not None else exc.base
-        return plan_action(
-            robot, inst, task.action, partial, base=where, q_start=q_start, seed=seed
-        )
+        return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+
+
+def _plan_partial(
+    robot: Robot,
+    inst: Instance,
+    task: TaskAction,
+    failure: Exception,
+    base: np.ndarray | None,
+    q_start: np.ndarray | None,
+    seed: int,
+) -> ActionPlan:
+    """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
+    earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
+    ``REPLAN_AT`` of the last failure's reach. Raises the last failure when a plan would move
+    the part less than ``MIN_STAGE`` of the range."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    for _ in range(PARTIAL_TRIES):
+        value = getattr(failure, "value", None)
+        if not isinstance(failure, ActionPlanningError) or value is None:
+            raise failure
+        partial = start + REPLAN_AT * (float(value) - start)
+        if (partial - start) * task.sign < MIN_STAGE * (hi - lo):
+            raise failure
+        try:
+            return plan_action(
+                robot, inst, task.action, partial, base=base, q_start=q_start, seed=seed
+            )
+        except ActionPlanningError as exc:
+            failure = exc
+    raise failure
 
 
 def _interleave(scored: list[np.ndarray], fixed: list[np.ndarray], count: int) -> list[np.ndarray]:
