@@ -190,7 +190,16 @@ def plan_placed(
         poses = poses[:1] + ([centred] if centred is not None else []) + poses[1:]
     else:
         poses = list(poses)[:count]
+    start_q = robot.home if options.get("q_start") is None else options["q_start"]
     for k, pose in enumerate(poses):
+        if collision_scene(robot, inst, base=pose).collides(start_q):
+            # the arm could not even start there; planning the action first would waste the
+            # time of its tracking and rank this placement above any that tracked less
+            first = first or GraceError(
+                f"{inst.concept.name}: the arm's start posture touches "
+                "the object from this base placement"
+            )
+            continue
         try:
             plan = plan_action(robot, inst, action, to, base=pose, seed=seed, **options)
         except GraceError as exc:

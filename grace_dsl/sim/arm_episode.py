@@ -70,6 +70,9 @@ MIN_STAGE = 0.08
 # Plans executed one after another at most: each follows the part as far as the arm reaches,
 # lets go and backs off; the next is planned from where the part and the arm then are
 STAGES = 3
+# s of OMPL for the approach of a partial plan or a later stage (a first plan has the planner's
+# 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
+LATER = 6.0
 PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
 PATH_FIRST = 3  # base poses scored on the hand's path tried (interleaved with the fixed shifts)
 OPEN_ENOUGH = 0.55  # fraction of the range past which an open stops staging (strict: half)
@@ -187,7 +190,9 @@ def plan_episode(
             return plan_placed(
                 robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses
             ).plan
-        return plan_action(robot, inst, task.action, to, base=base, q_start=q_start, seed=seed)
+        return plan_action(
+            robot, inst, task.action, to, base=base, q_start=q_start, seed=seed, time_limit=LATER
+        )
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
         return _plan_partial(robot, inst, task, exc, where, q_start, seed)
@@ -219,7 +224,14 @@ def _plan_partial(
             raise failure
         try:
             return plan_action(
-                robot, inst, task.action, partial, base=base, q_start=q_start, seed=seed
+                robot,
+                inst,
+                task.action,
+                partial,
+                base=base,
+                q_start=q_start,
+                seed=seed,
+                time_limit=LATER,
             )
         except ActionPlanningError as exc:
             failure = exc
