@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from grace_dsl.robot.placement import plan_placed
+from grace_dsl.sim import arm_episode
 from grace_dsl.sim.arm_episode import (
-    CLOSE_ENOUGH,
     _interleave,
     execute_stages,
     panda,
@@ -29,9 +29,11 @@ def test_interleave_alternates_scored_and_fixed_bases_without_repeats() -> None:
 
 
 @pytest.mark.slow
-def test_a_close_cut_short_is_finished_by_a_second_stage(lib) -> None:  # type: ignore[no-untyped-def]
-    """A door 1.2 rad open and a first plan that closes it only to 0.6 rad: a second plan,
-    from where the arm backed off, closes it."""
+def test_a_close_cut_short_is_taken_further_by_a_second_stage(lib, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A door 1.2 rad open and a first plan that closes it only to 0.6 rad: the second stage,
+    planned from the measured joint value with the arm where it backed off, closes it further
+    (two stages here, so that the test does not wait for a third plan)."""
+    monkeypatch.setattr(arm_episode, "STAGES", 2)
     concept = lib["HingedCabinet"]
     inst = concept.instantiate(pose=Z_UP, joints={"hinge": 1.2})
     task = task_action(concept, "close")
@@ -40,6 +42,6 @@ def test_a_close_cut_short_is_finished_by_a_second_stage(lib) -> None:  # type: 
     first = plan_placed(robot, inst, "close", 0.6, base=base, seed=0).plan
     assert first.to == pytest.approx(0.6)
     staged = execute_stages(inst, task, first, 20.0, seed=0)
-    lo, hi = inst.joint_limits()["hinge"]
-    assert not staged.unplanned and len(staged.options) == 2
-    assert staged.outcome.q_final <= lo + max(CLOSE_ENOUGH, 0.05) * (hi - lo)
+    assert staged.outcome.arrived and not staged.outcome.slipped
+    assert len(staged.options) == 2  # the second stage was planned and executed
+    assert staged.outcome.q_final < 0.6 - 0.05  # past where the first plan ended
