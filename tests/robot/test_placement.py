@@ -101,6 +101,7 @@ def test_reach_score_is_the_tracked_fraction_of_the_path(panda: Robot, lib) -> N
     assert score in {k / PATH_SAMPLES for k in range(1, PATH_SAMPLES + 1)}
 
 
+@pytest.mark.slow
 def test_path_bases_put_the_best_reach_first(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
     from grace_dsl.sim.arm_episode import robot_base
 
@@ -117,6 +118,7 @@ def test_path_bases_put_the_best_reach_first(panda: Robot, lib) -> None:  # type
         assert not collision_scene(panda, inst, base=b).collides(panda.home)
 
 
+@pytest.mark.slow
 def test_plan_placed_names_the_base_that_got_furthest(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
     inst = _wide_open_door(lib)
     from grace_dsl.sim.arm_episode import robot_base
