@@ -69,10 +69,17 @@ class ActionPlanningError(PlanningError):
     ``value`` the object's joint value there (how far it could be opened), when known."""
 
     def __init__(
-        self, message: str, *, phase: str = "", reason: str = "", value: float | None = None
+        self,
+        message: str,
+        *,
+        phase: str = "",
+        reason: str = "",
+        value: float | None = None,
+        base: FloatArray | None = None,
     ) -> None:
         super().__init__(message)
         self.phase, self.reason, self.value = phase, reason, value
+        self.base = base  # the base pose it was planned from, when a caller tried several
 
 
 @dataclass(frozen=True)
@@ -186,7 +193,8 @@ def plan_action(
         break
     else:
         goal = f" to {joint} = {to_value:g}" if joint is not None and to_value is not None else ""
-        worst = max(failures, key=_progress)
+        start = float(inst.joints[joint]) if joint is not None else 0.0
+        worst = max(failures, key=lambda e: progress(e, start))
         tried = f" ({len(failures)} grasp postures tried; the furthest)" * (len(failures) > 1)
         raise ActionPlanningError(
             f"{inst.concept.name}: cannot {action}{goal} from this base placement{tried}: {worst}",
@@ -205,12 +213,12 @@ def _why(exc: ActionPlanningError, k: int) -> str:
     return f"posture {k + 1}: {exc.phase}: {exc.reason}"
 
 
-def _progress(exc: ActionPlanningError) -> tuple[int, float]:
-    """How far a failed candidate got: the phase (in the order they are planned), then the
-    object's joint value reached."""
+def progress(exc: ActionPlanningError, start: float = 0.0) -> tuple[int, float]:
+    """How far a failed plan got: the phase (in the order they are planned), then how far the
+    object's joint moved from ``start`` (either way: an open and a close alike)."""
     order = ("moving in", "following the action", "backing out", "approach")
     rank = order.index(exc.phase) if exc.phase in order else -1
-    return rank, abs(exc.value) if exc.value is not None else 0.0
+    return rank, abs(exc.value - start) if exc.value is not None else 0.0
 
 
 def _phases(

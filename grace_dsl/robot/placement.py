@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.robot.collision import collision_scene
+from grace_dsl.robot.ik import IKOptions, solve_ik
 from grace_dsl.robot.model import Robot
 from grace_dsl.runtime.errors import GraceError, ParameterError
 
@@ -168,30 +169,148 @@ def plan_placed(
     base: FloatArray | None = None,
     seed: int = 0,
     count: int = PLACEMENTS,
+    poses: list[FloatArray] | None = None,
     **options: Any,
 ) -> Placed:
-    """``plan_action`` from the first of :func:`placements` that can do the action: a person
-    opening a door steps to where they can, so does the robot's base here. Raises the first
-    placement's error (naming how many were tried) when none can."""
-    from grace_dsl.robot.act import ActionPlanningError, plan_action
+    """``plan_action`` from the first of :func:`placements` (or of ``poses``, at most ``count``)
+    that can do the action: a person opening a door steps to where they can, so does the
+    robot's base here. When none can, raises
+    the error of the placement whose plan got furthest (``act.progress``; its ``base`` set to
+    that placement, so a caller can plan part of the way from there), naming how many were
+    tried."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action, progress
 
+    spec = inst.concept.actions[action]
+    start = float(inst.joints[spec.joint]) if spec.joint is not None else 0.0
     first: GraceError | None = None
-    poses = placements(inst, action, base, seed=seed, count=count - 1)
-    centred = _centred(inst, action, to, poses[0]) if count > 1 else None
-    poses = poses[:1] + ([centred] if centred is not None else []) + poses[1:]
+    furthest: ActionPlanningError | None = None
+    if poses is None:
+        poses = placements(inst, action, base, seed=seed, count=count - 1)
+        centred = _centred(inst, action, to, poses[0]) if count > 1 else None
+        poses = poses[:1] + ([centred] if centred is not None else []) + poses[1:]
+    else:
+        poses = list(poses)[:count]
+    start_q = robot.home if options.get("q_start") is None else options["q_start"]
     for k, pose in enumerate(poses):
+        if collision_scene(robot, inst, base=pose).collides(start_q):
+            # the arm could not even start there; planning the action first would waste the
+            # time of its tracking and rank this placement above any that tracked less
+            first = first or GraceError(
+                f"{inst.concept.name}: the arm's start posture touches "
+                "the object from this base placement"
+            )
+            continue
         try:
             plan = plan_action(robot, inst, action, to, base=pose, seed=seed, **options)
         except GraceError as exc:
             first = first or exc
+            if isinstance(exc, ActionPlanningError) and (
+                furthest is None or progress(exc, start) > progress(furthest, start)
+            ):
+                exc.base = pose
+                furthest = exc
             continue
         return Placed(plan, pose, k + 1)
     assert first is not None
-    if isinstance(first, ActionPlanningError):
+    if furthest is not None:
         raise ActionPlanningError(
-            f"{first} ({len(poses)} base placements tried)",
-            phase=first.phase,
-            reason=first.reason,
-            value=first.value,
+            f"{furthest} ({len(poses)} base placements tried)",
+            phase=furthest.phase,
+            reason=furthest.reason,
+            value=furthest.value,
+            base=furthest.base,
         ) from None
     raise first
+
+
+# Bases tried around the action's hand path (``path_bases``): distances from the path's middle
+# (metres; the Panda has most room 0.4-0.7 m out) and bearings off the object's front (radians)
+# (beside the object too: a lid's edge swings up in a plane a robot at its side faces)
+PATH_RADII = (0.5, 0.65, 0.8)
+PATH_BEARINGS = tuple(math.radians(a) for a in (-60, -35, -12, 12, 35, 60))
+SIDE_BEARINGS = tuple(math.radians(a) for a in (-120, -90, 90, 120))
+SIDE_RADII = (0.5, 0.65)
+PATH_SAMPLES = 9  # poses along the hand path checked by IK per base
+PATH_IK = IKOptions(max_restarts=0, time_limit=0.05)
+
+
+def hand_paths(
+    inst: Any, action: str, to: float | None, steps: int = PATH_SAMPLES
+) -> list[FloatArray]:
+    """The hand's poses (steps, 4, 4) along ``action`` to ``to`` from each of its grasps at the
+    middle of their free parameters (those that can be computed)."""
+    spec = inst.concept.actions[action]
+    if spec.joint is None:
+        return []
+    lo, hi = inst.joint_limits()[spec.joint]
+    target = (hi if spec.opening else lo) if to is None else float(to)
+    out = []
+    for grasp in spec.using:
+        middle = {f: (a + b) / 2 for f, (a, b) in inst.grasp_range(grasp).items()}
+        try:
+            pose = inst.grasp(grasp, free=middle)
+            out.append(np.asarray(inst.follow(action, grasp=pose, to=target, steps=steps)))
+        except GraceError:
+            continue
+    return out
+
+
+def reach_score(robot: Robot, path: FloatArray, base: FloatArray) -> float:
+    """The fraction of ``path`` the arm on ``base`` tracks from its start by IK (each pose
+    warm-started from the last, no restarts: a branch switch counts as the end), a cheap
+    forecast of how far the full plan will get."""
+    if len(path) == 0:
+        return 0.0
+    to_base = np.linalg.inv(base)
+    first = solve_ik(robot, to_base @ path[0], options=IKOptions(time_limit=0.2))
+    if not first.success:
+        return 0.0
+    q, reached = np.asarray(first.q), 1
+    for pose in path[1:]:
+        result = solve_ik(robot, to_base @ pose, q0=q, options=PATH_IK)
+        if not result.success or float(np.max(np.abs(result.q - q))) > 4 * 0.2:
+            break
+        q, reached = np.asarray(result.q), reached + 1
+    return reached / len(path)
+
+
+def path_bases(
+    robot: Robot, inst: Any, action: str, to: float | None, first: FloatArray
+) -> list[FloatArray]:
+    """Base poses for the whole of ``action``, not only its grasp: ``first`` and poses around
+    the middle of the hand's path (``PATH_RADII`` out, at ``PATH_BEARINGS`` off the direction
+    from the path's middle to ``first``, and beside it at ``SIDE_BEARINGS``; facing the path's
+    middle, ``HEIGHT`` below it), those
+    whose home posture touches the object left out, ordered by :func:`reach_score` (``first``
+    ahead on ties; alone when the whole path is in reach from it). Deterministic."""
+    paths = hand_paths(inst, action, to)
+    if not paths:
+        return [first]
+    middle = paths[0][:, :3, 3].mean(axis=0)
+    out = np.asarray(first, float)
+    ahead = math.atan2(out[1, 3] - middle[1], out[0, 3] - middle[0])
+    candidates = [out]
+    candidates += _ring(middle, ahead, PATH_RADII, PATH_BEARINGS)
+    candidates += _ring(middle, ahead, SIDE_RADII, SIDE_BEARINGS)
+    if max(reach_score(robot, path, out) for path in paths) >= 1.0:
+        return [out]  # the whole path is in reach from where the grasps put the base
+    free = [c for c in candidates if not collision_scene(robot, inst, base=c).collides(robot.home)]
+    scores = [max(reach_score(robot, path, c) for path in paths) for c in free]
+    order = sorted(range(len(free)), key=lambda k: (-scores[k], k))
+    return [free[k] for k in order] or [first]
+
+
+def _ring(
+    middle: FloatArray, ahead: float, radii: tuple[float, ...], bearings: tuple[float, ...]
+) -> list[FloatArray]:
+    """Base poses ``radii`` from ``middle`` at ``bearings`` off the direction ``ahead``, facing
+    ``middle``, ``HEIGHT`` below it."""
+    out = []
+    for radius in radii:
+        for bearing in bearings:
+            a = ahead + bearing
+            x, y = middle[0] + radius * math.cos(a), middle[1] + radius * math.sin(a)
+            pose = base_pose(x, y, math.atan2(middle[1] - y, middle[0] - x))
+            pose[2, 3] = middle[2] - HEIGHT
+            out.append(pose)
+    return out

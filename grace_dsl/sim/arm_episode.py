@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -64,8 +64,19 @@ from grace_dsl.sim.protocol import (
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 
 PLACEMENTS = 6  # base placements plan_placed may try (the given one, the centred one, shifts)
-REPLAN_AT = 0.95  # an open that plans only part of the way is replanned to this much of it
-ENOUGH = 0.55  # fraction of the range a partial open plan must reach to be worth executing
+REPLAN_AT = 0.95  # an action that plans only part of the way is replanned to this much of it
+# A plan that moves the part less than this fraction of the range is not worth executing
+MIN_STAGE = 0.08
+# Plans executed one after another at most: each follows the part as far as the arm reaches,
+# lets go and backs off; the next is planned from where the part and the arm then are
+STAGES = 3
+# s of OMPL for the approach of a partial plan or a later stage (a first plan has the planner's
+# 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
+LATER = 6.0
+PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
+PATH_FIRST = 3  # base poses scored on the hand's path tried (interleaved with the fixed shifts)
+OPEN_ENOUGH = 0.55  # fraction of the range past which an open stops staging (strict: half)
+CLOSE_ENOUGH = 0.025  # fraction of the range within which a close stops staging (strict: 5 %)
 # An open is planned to this fraction of the range (strict success needs half): the further a
 # door swings, the more often the arm's workspace ends first, and the gripper's 0.9 buys nothing
 OPEN_TO = 0.7
@@ -105,8 +116,16 @@ def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
     except GraceError as exc:
         return _early(config, seed, task, "ik_failure", str(exc), started, draw, inst)
-    outcome = execute_plan(inst, task, plan, config.max_seconds)
-    return outcome_record(config, seed, task, draw, inst, outcome, plan.choice.option, started)
+    staged = execute_stages(inst, task, plan, config.max_seconds, seed)
+    record = outcome_record(
+        config, seed, task, draw, inst, staged.outcome, plan.choice.option, started
+    )
+    if len(staged.options) > 1:
+        record = replace(record, option=" + ".join(staged.options))
+    if not record.strict and staged.unplanned:  # the arm stopped because no stage planned
+        reason = "no_feasible_grasp" if staged.no_grasp else "ik_failure"
+        record = replace(record, reason=reason, detail=staged.unplanned)
+    return record
 
 
 def robot_base(robot: Robot, inst: Instance, action: str) -> np.ndarray:
@@ -134,33 +153,149 @@ def robot_base(robot: Robot, inst: Instance, action: str) -> np.ndarray:
     return base
 
 
-def plan_episode(inst: Instance, task: TaskAction, seed: int) -> ActionPlan:
-    """The robot layer's plan for the task: open to ``OPEN_TO`` of the range (or, where the
-    arm cannot get that far, ``REPLAN_AT`` of how far it can, when that passes ``ENOUGH``);
-    close to the closed end."""
-    from grace_dsl.robot.act import ActionPlanningError
-    from grace_dsl.robot.placement import plan_placed
+def plan_episode(
+    inst: Instance,
+    task: TaskAction,
+    seed: int,
+    *,
+    base: np.ndarray | None = None,
+    q_start: np.ndarray | None = None,
+) -> ActionPlan:
+    """The robot layer's plan for the task from where the object stands: an open to
+    ``OPEN_TO`` of the range, a close to the closed end; where the arm cannot get that far,
+    to ``REPLAN_AT`` of how far it can, when that moves the part ``MIN_STAGE`` of the range
+    (the next stage goes on from there).
+
+    Without ``base`` (the first stage) the base is placed for the object as it stands and
+    ``plan_placed`` may move it; a partial plan is made from the placement that got furthest.
+    With ``base`` (a later stage: the base stands where it stood) the arm starts at ``q_start``.
+    """
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+    from grace_dsl.robot.placement import _centred, path_bases, placements, plan_placed
 
     robot = panda()
-    base = robot_base(robot, inst, task.action)
     lo, hi = inst.joint_limits()[task.joint]
     start = float(inst.joints[task.joint])
     span = hi - lo
     to = min(max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi)
     to = to if task.sign > 0 else lo
     try:
-        return plan_placed(
-            robot, inst, task.action, to, base=base, seed=seed, count=PLACEMENTS
-        ).plan
+        if base is None:
+            first = robot_base(robot, inst, task.action)
+            scored = path_bases(robot, inst, task.action, to, first)
+            fixed = placements(inst, task.action, first, seed=seed, count=PLACEMENTS)
+            centred = _centred(inst, task.action, to, first)
+            fixed[1:1] = [centred] if centred is not None else []
+            poses = _interleave(scored[:PATH_FIRST], fixed, PLACEMENTS)
+            return plan_placed(
+                robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses
+            ).plan
+        return plan_action(
+            robot, inst, task.action, to, base=base, q_start=q_start, seed=seed, time_limit=LATER
+        )
     except ActionPlanningError as exc:
-        if task.sign < 0 or exc.value is None:
-            raise
-        partial = start + REPLAN_AT * (float(exc.value) - start)
-        if partial < lo + ENOUGH * span:
-            raise
-        return plan_placed(
-            robot, inst, task.action, partial, base=base, seed=seed, count=PLACEMENTS
-        ).plan
+        where = base if base is not None else exc.base
+        return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+
+
+def _plan_partial(
+    robot: Robot,
+    inst: Instance,
+    task: TaskAction,
+    failure: Exception,
+    base: np.ndarray | None,
+    q_start: np.ndarray | None,
+    seed: int,
+) -> ActionPlan:
+    """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
+    earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
+    ``REPLAN_AT`` of the last failure's reach. Raises the last failure when a plan would move
+    the part less than ``MIN_STAGE`` of the range."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    for _ in range(PARTIAL_TRIES):
+        value = getattr(failure, "value", None)
+        if not isinstance(failure, ActionPlanningError) or value is None:
+            raise failure
+        partial = start + REPLAN_AT * (float(value) - start)
+        if (partial - start) * task.sign < MIN_STAGE * (hi - lo):
+            raise failure
+        try:
+            return plan_action(
+                robot,
+                inst,
+                task.action,
+                partial,
+                base=base,
+                q_start=q_start,
+                seed=seed,
+                time_limit=LATER,
+            )
+        except ActionPlanningError as exc:
+            failure = exc
+    raise failure
+
+
+def _interleave(scored: list[np.ndarray], fixed: list[np.ndarray], count: int) -> list[np.ndarray]:
+    """``count`` base poses alternating between the path-scored ones and the fixed shifts
+    (the best-scored first), none twice."""
+    out: list[np.ndarray] = []
+    for k in range(max(len(scored), len(fixed))):
+        for pose in scored[k : k + 1] + fixed[k : k + 1]:
+            if not any(np.allclose(pose, o) for o in out):
+                out.append(pose)
+    return out[:count]
+
+
+@dataclass(frozen=True)
+class Staged:
+    """What the stages left behind: the last outcome, the options executed in turn, and why
+    the arm stopped early when a stage could not be planned ("" when none was missing)."""
+
+    outcome: Outcome
+    options: tuple[str, ...]
+    unplanned: str = ""
+    no_grasp: bool = False
+
+
+def execute_stages(
+    inst: Instance, task: TaskAction, plan: ActionPlan, budget: float, seed: int
+) -> Staged:
+    """Execute ``plan`` and, while the part is short of the task's goal, plan again from the
+    measured state (same base, the arm where it backed off to) and execute that, up to
+    ``STAGES`` plans: as a person closes a wide door, follow it as far as the arm reaches, let
+    go, take it again nearer. ``budget`` simulated seconds of interaction over all stages."""
+    from grace_dsl.robot.choose import NoGraspError
+
+    robot = panda()
+    world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
+    lo, hi = inst.joint_limits()[task.joint]
+    span = hi - lo
+    options = [f"{plan.choice.option.grasp} ({plan.choice.option.mode})"]
+    left = budget
+    for stage in range(STAGES):
+        began = world.time
+        outcome = execute_plan(inst, task, plan, left, world=world)
+        left -= max(world.time - began - float(plan.t[-1]), 0.0)
+        q = outcome.q_final
+        done = q >= lo + OPEN_ENOUGH * span if task.sign > 0 else q <= lo + CLOSE_ENOUGH * span
+        moved = abs(q - float(inst.joints[task.joint]))
+        if done or outcome.unstable or not outcome.arrived or stage == STAGES - 1:
+            break
+        if moved < 0.01 * span or left <= 0.0:
+            break
+        inst = inst.with_joints({task.joint: q})
+        try:
+            here = np.clip(world.arm_q(), robot.lower, robot.upper)  # a motor may overshoot
+            plan = plan_episode(inst, task, seed, base=plan.base, q_start=here)
+        except NoGraspError as exc:
+            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}", True)
+        except GraceError as exc:
+            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}")
+        options.append(f"{plan.choice.option.grasp} ({plan.choice.option.mode})")
+    return Staged(outcome, tuple(options))
 
 
 @dataclass(frozen=True)
@@ -195,12 +330,15 @@ def execute_plan(
     world: ArmWorld | None = None,
     goal: float | None = None,
 ) -> Outcome:
-    """Run ``plan`` on the simulated arm; ``budget`` simulated seconds. ``world``: an arm world
-    already standing at ``plan.base`` and ``plan.q[0]`` (a room of several objects; default a
-    fresh one of ``inst`` alone); ``goal``: the joint value to drive to (default the episode's)."""
+    """Run ``plan`` on the simulated arm; ``budget`` simulated seconds of interaction. ``world``:
+    an arm world already standing at ``plan.base`` and ``plan.q[0]`` (a previous stage's, or a
+    room of several objects; default a fresh one of ``inst`` alone); ``goal``: the joint value
+    to drive to (default the episode's). A plan that stops short of the task's end
+    (``plan.to``) is followed to there and let go of where the hand is."""
     robot = panda()
     phases = _cut(plan)
-    world = world or ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
+    if world is None:
+        world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
     aimed = goal
     track = phases.move_in
     touched = [False]  # an arm link (not the hand) met the object on the way in
@@ -225,8 +363,12 @@ def execute_plan(
             return _finish(world, task, arrived, True, "the fingers closed on nothing")
     lo, hi = inst.joint_limits()[task.joint]
     goal = lo + FOLLOW_TO * (hi - lo) if task.sign > 0 else lo - PRESS_PAST * (hi - lo)
-    if task.sign > 0 and plan.to is not None:
-        goal = min(goal, float(plan.to))
+    partial = False
+    if plan.to is not None:
+        if task.sign > 0:
+            goal = min(goal, float(plan.to))
+        elif float(plan.to) > lo + CLOSE_ENOUGH * (hi - lo):  # a stage of a close
+            goal, partial = float(plan.to), True
     goal = goal if aimed is None else aimed
     follower = PathFollower.from_grasp(inst, task.joint, grasp, goal, task.sign)
     # the budget is the interaction's, as the flying hand's (its approach takes half a second;
@@ -234,7 +376,7 @@ def execute_plan(
     slipped = _follow(world, task, follower, phases, hand, lo, hi, budget)
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
-    hold = follower.pose_at(goal) if task.sign < 0 and not slipped else None
+    hold = follower.pose_at(goal) if task.sign < 0 and not slipped and not partial else None
     return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold)
 
 
@@ -281,6 +423,8 @@ def _follow(
     done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
     if task.sign > 0:  # the goal is where the target stops: done a little short of it
         done_at = min(done_at, follower.goal - DONE_SHORT * span)
+    else:  # a close's stage may stop short of the closed end
+        done_at = max(done_at, follower.goal + DONE_SHORT * span)
     end = world.time + max(seconds, 0.0)
     off_since: float | None = None
     q_ref = world.q(task.joint)

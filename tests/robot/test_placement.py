@@ -9,16 +9,21 @@ import numpy as np
 import pytest
 
 import grace_dsl as eac
-from grace_dsl.robot.act import RELAX_STEP, _relax
+from grace_dsl.robot.act import RELAX_STEP, ActionPlanningError, _relax
+from grace_dsl.robot.collision import collision_scene
 from grace_dsl.robot.ik import IKOptions
 from grace_dsl.robot.model import Robot
 from grace_dsl.robot.placement import (
+    PATH_SAMPLES,
     SHIFTS,
     _grasp_centre,
     base_pose,
     default_instance,
+    hand_paths,
+    path_bases,
     placements,
     plan_placed,
+    reach_score,
 )
 from tests.robot.test_grasp_ik import facing
 
@@ -72,3 +77,55 @@ def test_self_motion_leaves_the_hand_and_moves_away_from_the_limits(panda: Robot
         assert after <= before + 1e-6
         improved += after < before - 1e-3
     assert improved >= 7
+
+
+def _wide_open_door(lib):  # type: ignore[no-untyped-def]
+    from grace_dsl.sim.episode import Z_UP
+
+    inst = lib["DoorLeaf"].instantiate(pose=Z_UP)
+    return inst.with_joints({"hinge": inst.joint_limits()["hinge"][1]})
+
+
+def test_reach_score_is_the_tracked_fraction_of_the_path(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
+    inst = _wide_open_door(lib)
+    path = hand_paths(inst, "close", 0.0)[0]
+    assert path.shape == (PATH_SAMPLES, 4, 4)
+    far = base_pose(5.0, 0.0, math.pi)
+    assert reach_score(panda, path, far) == 0.0
+    # a base at the path's start, facing it, reaches the start but not the whole swing
+    start = path[0, :3, 3]
+    near = base_pose(float(start[0]) + 0.55, float(start[1]), math.pi)
+    near[2, 3] = float(start[2]) - 0.5
+    score = reach_score(panda, path, near)
+    assert 0.0 < score <= 1.0
+    assert score in {k / PATH_SAMPLES for k in range(1, PATH_SAMPLES + 1)}
+
+
+@pytest.mark.slow
+def test_path_bases_put_the_best_reach_first(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
+    from grace_dsl.sim.arm_episode import robot_base
+
+    inst = _wide_open_door(lib)
+    first = robot_base(panda, inst, "close")
+    bases = path_bases(panda, inst, "close", 0.0, first)
+    again = path_bases(panda, inst, "close", 0.0, first)
+    assert len(bases) > 1 and all(np.array_equal(a, b) for a, b in zip(bases, again))
+    paths = hand_paths(inst, "close", 0.0)
+    scores = [max(reach_score(panda, p, b) for p in paths) for b in bases]
+    assert scores[0] == max(scores)
+    assert scores[0] > max(reach_score(panda, p, first) for p in paths)
+    for b in bases:  # the arm at home stands clear of the open door
+        assert not collision_scene(panda, inst, base=b).collides(panda.home)
+
+
+@pytest.mark.slow
+def test_plan_placed_names_the_base_that_got_furthest(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
+    inst = _wide_open_door(lib)
+    from grace_dsl.sim.arm_episode import robot_base
+
+    first = robot_base(panda, inst, "close")
+    with pytest.raises(ActionPlanningError) as caught:
+        plan_placed(panda, inst, "close", 0.0, poses=[first], count=1)
+    assert caught.value.base is not None
+    np.testing.assert_array_equal(caught.value.base, first)
+    assert caught.value.value is None or caught.value.value < inst.joints["hinge"]

@@ -1,0 +1,47 @@
+"""Staged arm actions: a plan that stops short of the task's end is executed to there, the
+hand lets go, and the next stage is planned from the measured state (same base)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from grace_dsl.robot.placement import plan_placed
+from grace_dsl.sim import arm_episode
+from grace_dsl.sim.arm_episode import (
+    _interleave,
+    execute_stages,
+    panda,
+    robot_base,
+)
+from grace_dsl.sim.episode import Z_UP
+from grace_dsl.sim.protocol import task_action
+
+
+def test_interleave_alternates_scored_and_fixed_bases_without_repeats() -> None:
+    poses = [np.eye(4) for _ in range(4)]
+    for k, pose in enumerate(poses):
+        pose[0, 3] = k
+    scored, fixed = [poses[2], poses[0]], [poses[0], poses[1], poses[3]]
+    out = _interleave(scored, fixed, 4)
+    assert [float(p[0, 3]) for p in out] == [2.0, 0.0, 1.0, 3.0]
+    assert len(_interleave(scored, fixed, 2)) == 2
+
+
+@pytest.mark.slow
+def test_a_close_cut_short_is_taken_further_by_a_second_stage(lib, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A door 1.2 rad open and a first plan that closes it only to 0.6 rad: the second stage,
+    planned from the measured joint value with the arm where it backed off, closes it further
+    (two stages here, so that the test does not wait for a third plan)."""
+    monkeypatch.setattr(arm_episode, "STAGES", 2)
+    concept = lib["HingedCabinet"]
+    inst = concept.instantiate(pose=Z_UP, joints={"hinge": 1.2})
+    task = task_action(concept, "close")
+    robot = panda()
+    base = robot_base(robot, inst, "close")
+    first = plan_placed(robot, inst, "close", 0.6, base=base, seed=0).plan
+    assert first.to == pytest.approx(0.6)
+    staged = execute_stages(inst, task, first, 20.0, seed=0)
+    assert staged.outcome.arrived and not staged.outcome.slipped
+    assert len(staged.options) == 2  # the second stage was planned and executed
+    assert staged.outcome.q_final < 0.6 - 0.05  # past where the first plan ended
