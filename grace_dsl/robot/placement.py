@@ -76,12 +76,19 @@ def default_instance(
     return inst
 
 
+def _present(inst: Any, using: Any) -> list[str]:
+    """The action's grasps this instance has (a variant's exist only where its option is
+    chosen; a repeated part's only where its copy is)."""
+    have = set(inst.grasp_names)
+    return [g for g in using if g in have]
+
+
 def _grasp_centre(inst: Any, action: str) -> FloatArray:
     """The mean position of the action's grasps at the middle of their free parameters (the
     instance's origin for an action without grasps)."""
     spec = inst.concept.actions[action]
     points = []
-    for name in spec.using:
+    for name in _present(inst, spec.using):
         middle = {f: (lo + hi) / 2 for f, (lo, hi) in inst.grasp_range(name).items()}
         points.append(inst.grasp(name, free=middle)[:3, 3])
     return np.mean(points, axis=0) if points else inst.pose[:3, 3].copy()
@@ -144,11 +151,12 @@ def _centred(inst: Any, action: str, to: float | None, base: FloatArray) -> Floa
     robot stands where the motion, not only its start, is in front of it. None for an action
     that moves no joint or whose path cannot be computed."""
     spec = inst.concept.actions[action]
-    if spec.joint is None or not spec.using:
+    using = _present(inst, spec.using)
+    if spec.joint is None or not using:
         return None
     lo, hi = inst.joint_limits()[spec.joint]
     target = (hi if spec.opening else lo) if to is None else float(to)
-    grasp = spec.using[0]
+    grasp = using[0]
     middle = {f: (a + b) / 2 for f, (a, b) in inst.grasp_range(grasp).items()}
     try:
         path = inst.follow(action, grasp=inst.grasp(grasp, free=middle), to=target, steps=9)
@@ -245,7 +253,7 @@ def hand_paths(
     lo, hi = inst.joint_limits()[spec.joint]
     target = (hi if spec.opening else lo) if to is None else float(to)
     out = []
-    for grasp in spec.using:
+    for grasp in _present(inst, spec.using):
         middle = {f: (a + b) / 2 for f, (a, b) in inst.grasp_range(grasp).items()}
         try:
             pose = inst.grasp(grasp, free=middle)

@@ -37,7 +37,7 @@ def test_an_obstacle_at_the_hand_collides_and_one_far_away_does_not(
 def test_the_grasp_filter_keeps_only_the_named_options(lib: eac.Library, panda: Robot) -> None:
     drawer = default_instance(panda, lib["CabinetDrawer"], "close").with_joints({"slide": 0.15})
     everything, _ = grasp_candidates(panda, drawer, "close", starts=0)
-    assert {c.option.grasp for c in everything} == {"handle.pull", "push_front"}
+    assert {c.option.grasp for c in everything} == {"handle.pull", "push_front", "push_top"}
     only, _ = grasp_candidates(panda, drawer, "close", starts=0, grasps=["push_front"])
     assert {c.option.grasp for c in only} == {"push_front"}
     with pytest.raises(NoGraspError):

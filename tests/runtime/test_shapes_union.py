@@ -80,8 +80,9 @@ def test_union_mesh_is_the_solid_sdf_describes(name: str) -> None:
     assert far.sum() > N_CONTAINS / 3
     agree = mesh.contains(pts[far]) == (d[far] < 0)
     # trimesh's ray test misses now and then (a ray grazing an edge, or the zero-width seam
-    # where two solids touch): ask again along other directions about the points it doubts
-    assert agree.mean() >= 0.98, (name, agree.mean())
+    # where two solids touch; up to 2.6 % of RangeHood's points in a CI run):
+    # ask again along other directions about every point it doubts, which must all agree
+    assert agree.mean() >= 0.95, (name, agree.mean())
     if not agree.all():
         again = inside_by_rays(mesh, pts[far][~agree], rng)
         assert np.all(again == (d[far][~agree] < 0)), (name, pts[far][~agree], d[far][~agree])
