@@ -35,9 +35,8 @@ from grace_dsl.sim.arm import ARM_JOINTS, ARM_LINKS, ArmWorld, arm_body, panda_c
 from grace_dsl.sim.camera import Camera
 from grace_dsl.sim.episode import Outcome
 from grace_dsl.sim.hand import OBJECT_GROUP, HandSpec, quat_wxyz
-from grace_dsl.sim.multi import MultiWorldError, _physical
+from grace_dsl.sim.multi import Room
 from grace_dsl.sim.protocol import TaskAction
-from grace_dsl.sim.scene import Frame, Scene
 
 if TYPE_CHECKING:
     from grace_dsl.robot.act import ActionPlan
@@ -63,7 +62,7 @@ class ArmAct:
     arm_after: tuple[float, ...]
 
 
-class ArmMultiWorld:
+class ArmMultiWorld(Room):
     """Several posed instances (world poses, as ``multi.place`` gives) and the Panda arm."""
 
     def __init__(
@@ -72,16 +71,8 @@ class ArmMultiWorld:
         gripper: Gripper | None = None,
         camera: Camera | None = None,
     ):
-        names = [n for n, _ in objects]
-        if not objects:
-            raise MultiWorldError("a world needs at least one object")
-        if len(set(names)) != len(names):
-            raise MultiWorldError(f"object names must be unique, got {names}")
+        self._set_objects(objects, camera)
         self.gripper = gripper or Gripper.panda()
-        self.names = tuple(names)
-        self._initial = {n: inst for n, inst in objects}
-        scene = Scene.from_instances([i for _, i in objects], camera=camera, up="keep")
-        self.scene = replace(scene, texts=tuple(_physical(t) for t in scene.texts))
         arm_xml, hand = _arm_spec(self.gripper)
         model, data = self.scene.compile(extra=[(mujoco.MjSpec.from_string(arm_xml), ARM)])
         hand = replace(
@@ -92,14 +83,7 @@ class ArmMultiWorld:
         )
         floor = model.geom("floor").id
         model.geom_conaffinity[floor] = OBJECT_GROUP  # the floor holds the objects, not the arm
-        self._joints: dict[str, dict[str, int]] = {}
-        for name, exported, prefix in zip(self.names, self.scene.models, self.scene.prefixes):
-            inst = self._initial[name]
-            self._joints[name] = {
-                j.source: int(model.joint(prefix + j.name).qposadr[0])
-                for j in exported.joints
-                if j.kind != "fixed" and j.source in inst.concept.joint_index
-            }
+        self._index_joints(model)
         arm_bodies = {model.body(ARM + n).id for n in ARM_LINKS}
         ours = {b for b in range(model.nbody) if model.body(b).name.startswith(ARM)}
         self._mocap = int(model.body_mocapid[model.body(ARM + "panda_link0").id])
@@ -133,23 +117,8 @@ class ArmMultiWorld:
     def time(self) -> float:
         return self.arm.time
 
-    def joints(self, obj: str) -> dict[str, float]:
-        """The measured value of every joint of object ``obj`` (concept joint names)."""
-        return {j: float(self.arm.data.qpos[a]) for j, a in self._addresses(obj).items()}
-
-    def q(self, obj: str, joint: str) -> float:
-        """The measured value of one joint of object ``obj``."""
-        addresses = self._addresses(obj)
-        if joint not in addresses:
-            raise MultiWorldError(
-                f"object {obj!r} has no movable joint {joint!r}; it has {sorted(addresses)}"
-            )
-        return float(self.arm.data.qpos[addresses[joint]])
-
-    def instance(self, obj: str) -> Instance:
-        """Object ``obj`` at its world pose with its MEASURED joint values."""
-        self._addresses(obj)
-        return self._initial[obj].with_joints(self.joints(obj))
+    def _state(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        return self.arm.model, self.arm.data
 
     def arm_q(self) -> np.ndarray:
         """The arm's seven measured joint angles."""
@@ -161,10 +130,6 @@ class ArmMultiWorld:
         pose[:3, 3] = self.arm.data.mocap_pos[self._mocap]
         mujoco.mju_quat2Mat(pose[:3, :3].reshape(9), self.arm.data.mocap_quat[self._mocap])
         return pose
-
-    def render(self) -> Frame:
-        """The scene camera's RGB, depth and segmentation of the world as it is now."""
-        return self.scene.render(self.arm.model, self.arm.data)
 
     # -- acting
     def place_base(self, base: np.ndarray, q: np.ndarray) -> None:
@@ -212,11 +177,6 @@ class ArmMultiWorld:
             arm_before,
             tuple(float(v) for v in self.arm_q()),
         )
-
-    def _addresses(self, obj: str) -> dict[str, int]:
-        if obj not in self._joints:
-            raise MultiWorldError(f"no object {obj!r} in this world; it has {list(self.names)}")
-        return self._joints[obj]
 
 
 def base_yaw(base: np.ndarray) -> float:

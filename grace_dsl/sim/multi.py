@@ -71,7 +71,75 @@ class Act:
     sim_seconds: float  # simulated time this action took
 
 
-class MultiWorld:
+class Room:
+    """What a world of several posed objects knows of them, whoever acts in it (the flying
+    hand's ``MultiWorld``, the arm's ``ArmMultiWorld``): their names, the instances as placed,
+    the scene, and where each object's movable joints sit in the compiled model's state. The
+    measured joints are read back through it."""
+
+    names: tuple[str, ...]
+    scene: Scene
+    _initial: dict[str, Instance]
+    _joints: dict[str, dict[str, int]]
+
+    def _set_objects(self, objects: Sequence[tuple[str, Instance]], camera: Camera | None) -> None:
+        """Check the objects' names and build their scene (``objects`` as ``place`` gives)."""
+        names = [n for n, _ in objects]
+        if not objects:
+            raise MultiWorldError("a world needs at least one object")
+        if len(set(names)) != len(names):
+            raise MultiWorldError(f"object names must be unique, got {names}")
+        self.names = tuple(names)
+        self._initial = {n: inst for n, inst in objects}
+        scene = Scene.from_instances([i for _, i in objects], camera=camera, up="keep")
+        self.scene = replace(scene, texts=tuple(_physical(t) for t in scene.texts))
+
+    def _index_joints(self, model: mujoco.MjModel) -> None:
+        """Each object's movable concept joints and their qpos addresses in ``model``."""
+        self._joints = {}
+        for name, exported, prefix in zip(self.names, self.scene.models, self.scene.prefixes):
+            inst = self._initial[name]
+            self._joints[name] = {
+                j.source: int(model.joint(prefix + j.name).qposadr[0])
+                for j in exported.joints
+                if j.kind != "fixed" and j.source in inst.concept.joint_index
+            }
+
+    def _state(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        """The compiled model and its live data (the acting world's)."""
+        raise NotImplementedError
+
+    def joints(self, obj: str) -> dict[str, float]:
+        """The measured value of every joint of object ``obj`` (concept joint names)."""
+        qpos = self._state()[1].qpos
+        return {j: float(qpos[a]) for j, a in self._addresses(obj).items()}
+
+    def q(self, obj: str, joint: str) -> float:
+        """The measured value of one joint of object ``obj``."""
+        addresses = self._addresses(obj)
+        if joint not in addresses:
+            raise MultiWorldError(
+                f"object {obj!r} has no movable joint {joint!r}; it has {sorted(addresses)}"
+            )
+        return float(self._state()[1].qpos[addresses[joint]])
+
+    def instance(self, obj: str) -> Instance:
+        """Object ``obj`` as an instance at its world pose with its MEASURED joint values: what
+        the runtime ranks grasps and plans paths on."""
+        self._addresses(obj)
+        return self._initial[obj].with_joints(self.joints(obj))
+
+    def render(self) -> Frame:
+        """The scene camera's RGB, depth and segmentation of the world as it is now."""
+        return self.scene.render(*self._state())
+
+    def _addresses(self, obj: str) -> dict[str, int]:
+        if obj not in self._joints:
+            raise MultiWorldError(f"no object {obj!r} in this world; it has {list(self.names)}")
+        return self._joints[obj]
+
+
+class MultiWorld(Room):
     """Several posed instances (world poses, as ``place`` gives) and the flying hand."""
 
     def __init__(
@@ -81,16 +149,8 @@ class MultiWorld:
         camera: Camera | None = None,
         impedance: Impedance | None = None,
     ):
-        names = [n for n, _ in objects]
-        if not objects:
-            raise MultiWorldError("a world needs at least one object")
-        if len(set(names)) != len(names):
-            raise MultiWorldError(f"object names must be unique, got {names}")
+        self._set_objects(objects, camera)
         self.gripper = gripper or Gripper.load("panda")
-        self.names = tuple(names)
-        self._initial = {n: inst for n, inst in objects}
-        scene = Scene.from_instances([i for _, i in objects], camera=camera, up="keep")
-        self.scene = replace(scene, texts=tuple(_physical(t) for t in scene.texts))
         park = np.eye(4)
         park[:3, 3] = PARK
         park[:3, :3] = np.diag([1.0, -1.0, -1.0])  # pointing down
@@ -107,14 +167,7 @@ class MultiWorld:
         model.dof_damping[dof : dof + 3] = LINEAR_DAMPING
         model.dof_damping[dof + 3 : dof + 6] = ANGULAR_DAMPING
         model.dof_armature[dof + 3 : dof + 6] += ANGULAR_ARMATURE
-        self._joints: dict[str, dict[str, int]] = {}
-        for name, exported, prefix in zip(self.names, self.scene.models, self.scene.prefixes):
-            inst = self._initial[name]
-            self._joints[name] = {
-                j.source: int(model.joint(prefix + j.name).qposadr[0])
-                for j in exported.joints
-                if j.kind != "fixed" and j.source in inst.concept.joint_index
-            }
+        self._index_joints(model)
         body = model.body(hand.body).id
         self.world = World(model, data, hand, {}, body, impedance or Impedance())
         self.world.set_fingers(0.0, at_once=True)
@@ -125,28 +178,8 @@ class MultiWorld:
     def time(self) -> float:
         return self.world.time
 
-    def joints(self, obj: str) -> dict[str, float]:
-        """The measured value of every joint of object ``obj`` (concept joint names)."""
-        return {j: float(self.world.data.qpos[a]) for j, a in self._addresses(obj).items()}
-
-    def q(self, obj: str, joint: str) -> float:
-        """The measured value of one joint of object ``obj``."""
-        addresses = self._addresses(obj)
-        if joint not in addresses:
-            raise MultiWorldError(
-                f"object {obj!r} has no movable joint {joint!r}; it has {sorted(addresses)}"
-            )
-        return float(self.world.data.qpos[addresses[joint]])
-
-    def instance(self, obj: str) -> Instance:
-        """Object ``obj`` as an instance at its world pose with its MEASURED joint values: what
-        the runtime ranks grasps and plans paths on."""
-        self._addresses(obj)
-        return self._initial[obj].with_joints(self.joints(obj))
-
-    def render(self) -> Frame:
-        """The scene camera's RGB, depth and segmentation of the world as it is now."""
-        return self.scene.render(self.world.model, self.world.data)
+    def _state(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        return self.world.model, self.world.data
 
     # -- acting
     def act(
@@ -183,11 +216,6 @@ class MultiWorld:
         self.world.finger_goal = view.finger_goal
         self.world.place_hand(_parked(self.world.hand_pose()))
         return Act(obj, joint, q0, self.q(obj, joint), out, self.world.time - began)
-
-    def _addresses(self, obj: str) -> dict[str, int]:
-        if obj not in self._joints:
-            raise MultiWorldError(f"no object {obj!r} in this world; it has {list(self.names)}")
-        return self._joints[obj]
 
 
 def _parked(pose: np.ndarray) -> np.ndarray:
