@@ -44,11 +44,10 @@ from grace_dsl.agent.estimated import (
     look_around,
     with_joints_clipped,
 )
-from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
+from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.episode import Z_UP, _early, execute, outcome_record
-from grace_dsl.sim.protocol import draw_episode, task_action
+from grace_dsl.sim.episode import _early, execute, outcome_record, start_episode
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.scene import Scene
 from grace_dsl.sim.world import World
@@ -69,20 +68,13 @@ def estimated_episode(
     min_confidence: float = MIN_CONFIDENCE,
 ) -> EpisodeRecord:
     """The episode, with the agent's view policy and confidence threshold as arguments."""
-    from grace_dsl.sim.runner import shared_library
-
     _check(config)
     started = time.perf_counter()
-    concept = shared_library()[config.concept]
-    task = task_action(concept, config.task)
-    try:
-        draw = draw_episode(config, concept, seed)
-    except RequirementError as exc:
-        return _early(config, seed, task, "invalid_draw", str(exc), started)
-    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
-    true = concept.instantiate(
-        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
-    )
+    start = start_episode(config, seed, started)
+    if isinstance(start, EpisodeRecord):
+        return start
+    task, draw, ranges, true = start.task, start.draw, start.ranges, start.inst
+    concept = true.concept
     first = View(draw.camera["azimuth"], draw.camera["elevation"])
     views = [first, first.opposite()] if second_view else [first]
     got, account = perceive_episode(true, views, seed, min_confidence)

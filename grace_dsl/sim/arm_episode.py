@@ -31,7 +31,7 @@ import numpy as np
 
 from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
-from grace_dsl.runtime.errors import GraceError, ParameterError, RequirementError
+from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.sim.arm import ArmWorld
 from grace_dsl.sim.arm_control import HandImpedance, JointTrajectory, track_torque
@@ -48,18 +48,15 @@ from grace_dsl.sim.episode import (
     SETTLE,
     SLIP,
     SLIP_TIME,
-    Z_UP,
     Outcome,
     _early,
-    _library,
     deeper,
     outcome_record,
+    start_episode,
 )
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
     TaskAction,
-    draw_episode,
-    task_action,
 )
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 
@@ -100,16 +97,10 @@ def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
             "agent='gripper'"
         )
     started = time.perf_counter()
-    concept = _library()[config.concept]
-    task = task_action(concept, config.task)
-    try:
-        draw = draw_episode(config, concept, seed)
-    except RequirementError as exc:
-        return _early(config, seed, task, "invalid_draw", str(exc), started)
-    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
-    inst = concept.instantiate(
-        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
-    )
+    start = start_episode(config, seed, started)
+    if isinstance(start, EpisodeRecord):
+        return start
+    task, draw, inst = start.task, start.draw, start.inst
     try:
         plan = plan_episode(inst, task, seed)
     except NoGraspError as exc:

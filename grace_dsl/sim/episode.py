@@ -82,16 +82,10 @@ def episode_and_world(
 
         return run_arm_episode(config, seed), None
     started = time.perf_counter()
-    concept = _library()[config.concept]
-    task = task_action(concept, config.task)
-    try:
-        draw = draw_episode(config, concept, seed)
-    except RequirementError as exc:
-        return _early(config, seed, task, "invalid_draw", str(exc), started), None
-    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
-    inst = concept.instantiate(
-        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
-    )
+    start = start_episode(config, seed, started)
+    if isinstance(start, EpisodeRecord):
+        return start, None
+    task, draw, inst = start.task, start.draw, start.inst
     gripper = Gripper.load(config.hand)
     try:
         options = inst.rank(task.action, gripper=gripper)
@@ -109,6 +103,33 @@ def episode_and_world(
     )
     record = outcome_record(config, seed, task, draw, inst, outcome, usable[0], started)
     return record, outcome.world if isinstance(outcome.world, World) else None
+
+
+@dataclass(frozen=True)
+class Start:
+    """An episode's seeded draw made into the object it acts on."""
+
+    task: TaskAction
+    draw: Draw
+    ranges: str  # "typical", or "valid" for a scaled draw or a config that asks for it
+    inst: Instance  # the true object, z-up at the origin, at the draw's initial joint value
+
+
+def start_episode(config: EpisodeConfig, seed: int, started: float) -> Start | EpisodeRecord:
+    """The task, the seeded draw and the true instance of episode ``seed`` of ``config`` (every
+    agent's episode begins so); a draw that meets no requirement of the concept is the early
+    ``invalid_draw`` record instead."""
+    concept = _library()[config.concept]
+    task = task_action(concept, config.task)
+    try:
+        draw = draw_episode(config, concept, seed)
+    except RequirementError as exc:
+        return _early(config, seed, task, "invalid_draw", str(exc), started)
+    ranges = "valid" if draw.scale != 1.0 or config.ranges == "valid" else "typical"
+    inst = concept.instantiate(
+        pose=Z_UP, joints={task.joint: draw.q_initial}, ranges=ranges, params=draw.params
+    )
+    return Start(task, draw, ranges, inst)
 
 
 def outcome_record(
