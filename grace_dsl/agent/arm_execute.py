@@ -34,7 +34,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grace_dsl.agent.execute import MAX_ATTEMPTS, SECONDS, Attempt, Executor, ParamSource, _why, aim
+from grace_dsl.agent.execute import (
+    MAX_ATTEMPTS,
+    SECONDS,
+    Attempt,
+    Executor,
+    ParamSource,
+    _why,
+    against_action,
+    aim,
+)
 from grace_dsl.agent.plan import Condition, SceneSpec, SubTask, Target
 from grace_dsl.runtime.errors import GraceError
 from grace_dsl.sim.arm_multi import ArmMultiWorld, base_yaw
@@ -94,12 +103,9 @@ class ArmExecutor(Executor):
         q0 = self.world.q(sub.object, sub.joint)
         lo, hi = inst.joint_limits()[sub.joint]
         goal = arm_aim(sub.target, sub.condition, q0, lo, hi, sign)
-        if goal is not None and (goal - q0) * sign <= 0:
-            return Attempt(
-                "", q0, q0, goal, False, "unreachable_target",
-                f"{sub.action} moves {sub.joint} the other way: from {q0:.3f} it cannot reach "
-                f"{goal:.3f}",
-            )  # fmt: skip
+        wrong_way = against_action(sub, q0, goal, sign)
+        if wrong_way is not None:
+            return wrong_way
         arm = tuple(float(v) for v in self.world.arm_q())
         feasible = [o.grasp for o in inst.rank(sub.action, gripper=self.gripper) if o.feasible]
         if not feasible:

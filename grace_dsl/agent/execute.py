@@ -148,6 +148,18 @@ class RunResult:
         }
 
 
+def against_action(sub: SubTask, q0: float, goal: float | None, sign: float) -> Attempt | None:
+    """The ``unreachable_target`` attempt when the goal lies the other way from where the
+    sub-task's action moves its joint (nothing is executed), else None."""
+    if goal is None or (goal - q0) * sign > 0:
+        return None
+    return Attempt(
+        "", q0, q0, goal, False, "unreachable_target",
+        f"{sub.action} moves {sub.joint} the other way: from {q0:.3f} it cannot reach "
+        f"{goal:.3f}",
+    )  # fmt: skip
+
+
 class Executor:
     """A scene made physical, and the loop that carries plans out in it.
 
@@ -286,12 +298,9 @@ class Executor:
     ) -> Attempt:
         lo, hi = inst.joint_limits()[sub.joint]
         goal = aim(sub.target, sub.condition, q0, lo, hi, sign)
-        if goal is not None and (goal - q0) * sign <= 0:
-            return Attempt(
-                "", q0, q0, goal, False, "unreachable_target",
-                f"{sub.action} moves {sub.joint} the other way: from {q0:.3f} it cannot reach "
-                f"{goal:.3f}",
-            )  # fmt: skip
+        wrong_way = against_action(sub, q0, goal, sign)
+        if wrong_way is not None:
+            return wrong_way
         option = self._choose(inst, sub.action, tried)
         if option is None:
             return Attempt("", q0, q0, goal, False, "no_feasible_grasp", "no feasible option")
