@@ -208,6 +208,23 @@ def _handle(rng: np.random.Generator, span: float) -> dict[str, float]:
     return {"length": length, "radius": _u(rng, 0.005, 0.008), "standoff": _u(rng, 0.028, 0.036)}
 
 
+def _door_pair(
+    m: Model,
+    rect: tuple[float, float, float, float],
+    gap: float,
+    z0: float,
+    t: float,
+    handle: dict[str, float],
+    inset: float,
+    knob: dict[str, float] | None,
+) -> None:
+    """Two leaves ``door_l`` and ``door_r`` over ``rect`` (x0, x1, y0, y1), ``gap`` apart in the
+    middle, hinged at the outer edges, their handles ``inset`` from the meeting edges."""
+    x0, x1, y0, y1 = rect
+    _door(m, "door_l", (x0, -gap / 2, y0, y1), z0, t, "left", handle, inset, 0.0, 1.9, knob=knob)
+    _door(m, "door_r", (gap / 2, x1, y0, y1), z0, t, "right", handle, inset, 0.0, 1.9, knob=knob)
+
+
 def _door(
     m: Model,
     name: str,
@@ -366,32 +383,7 @@ def sample_model(layout: str, seed: int) -> Model:
     elif layout == "two_doors":
         dh = _handle(rng, h - 0.1)
         inset = _u(rng, 0.04, 0.07) if knob is None else _u(kind_rng, 0.05, 0.07)
-        _door(
-            m,
-            "door_l",
-            (inner[0], -gap / 2, bottom, top),
-            z0,
-            t,
-            "left",
-            dh,
-            inset,
-            0.0,
-            1.9,
-            knob=knob,
-        )
-        _door(
-            m,
-            "door_r",
-            (gap / 2, inner[1], bottom, top),
-            z0,
-            t,
-            "right",
-            dh,
-            inset,
-            0.0,
-            1.9,
-            knob=knob,
-        )
+        _door_pair(m, (inner[0], inner[1], bottom, top), gap, z0, t, dh, inset, knob)
     elif drawers:
         n = int(layout[-1])
         fh = (top - bottom - (n - 1) * gap) / n
@@ -437,32 +429,7 @@ def sample_model(layout: str, seed: int) -> Model:
         dh_ = {"length": dh, "radius": handle["radius"], "standoff": handle["standoff"]}
         inset = _u(rng, 0.04, 0.07) if knob is None else _u(kind_rng, 0.05, 0.07)
         door_top = top - fh - gap
-        _door(
-            m,
-            "door_l",
-            (inner[0], -gap / 2, bottom, door_top),
-            z0,
-            t,
-            "left",
-            dh_,
-            inset,
-            0.0,
-            1.9,
-            knob=knob,
-        )
-        _door(
-            m,
-            "door_r",
-            (gap / 2, inner[1], bottom, door_top),
-            z0,
-            t,
-            "right",
-            dh_,
-            inset,
-            0.0,
-            1.9,
-            knob=knob,
-        )
+        _door_pair(m, (inner[0], inner[1], bottom, door_top), gap, z0, t, dh_, inset, knob)
         params.update(drawer_height=fh, door_handle=dh_, handle_inset=inset)
     else:  # drawer over door
         fh = _u(rng, 0.12, 0.2)
