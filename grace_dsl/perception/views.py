@@ -30,6 +30,7 @@ from grace_dsl.perception.camera import (
 from grace_dsl.perception.errors import PerceptionError
 from grace_dsl.perception.render import DepthRender, InstanceSDF, bounding_sphere, render
 from grace_dsl.perception.types import Intrinsics, ViewSample
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Concept
@@ -119,11 +120,18 @@ def view_seed(concept: str, seed: int, index: int) -> int:
 
 def random_instance(concept: Concept, rng: np.random.Generator, closed: float = 0.5) -> Instance:
     """An instance with parameters drawn in their typical ranges (redrawn until the
-    requirements hold) and joints closed, or each uniform in its range."""
+    requirements hold; after ``MAX_TRIES`` uniform draws, repaired as ``eacc verify`` repairs
+    them: few uniform draws of a concept with a variant part, such as DoorLeaf's handle, meet
+    every variant's requirements) and joints closed, or each uniform in its range."""
     last: Exception | None = None
-    for _ in range(MAX_TRIES):
+    for attempt in range(2 * MAX_TRIES):
         try:
-            inst = concept.instantiate(params=draw_params(concept, rng))
+            params = (
+                draw_params(concept, rng)
+                if attempt < MAX_TRIES
+                else draw_valid(concept, rng, concept.params, draw_params)
+            )
+            inst = concept.instantiate(params=params)
         except ParameterError as exc:  # RequirementError and ShapeError are ParameterErrors
             last = exc
             continue
@@ -135,7 +143,8 @@ def random_instance(concept: Concept, rng: np.random.Generator, closed: float = 
             joints[name] = float(rng.uniform(lo, hi))
         return inst.with_joints(joints) if joints else inst
     raise PerceptionError(
-        f"{concept.name}: no parameter draw met its requirements in {MAX_TRIES} tries ({last})"
+        f"{concept.name}: no parameter draw met its requirements in {MAX_TRIES} uniform and "
+        f"{MAX_TRIES} repaired tries ({last})"
     )
 
 
