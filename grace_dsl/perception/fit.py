@@ -27,7 +27,13 @@ from scipy.spatial import cKDTree
 
 from grace_dsl.perception.camera import look_at
 from grace_dsl.perception.labels import covered, label_masks, subsample
-from grace_dsl.perception.model import PartsModel, SdfModel, parts_model, sdf_model
+from grace_dsl.perception.model import (
+    PartsModel,
+    SdfModel,
+    float_index,
+    parts_model,
+    sdf_model,
+)
 from grace_dsl.perception.start import feasible_instance, plane_starts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
@@ -57,7 +63,7 @@ LEARNED_PLANES = 2  # of them screened against a learned start's pose
 # m: with part labels a point's own part is where it belongs, so the first stage is nearly
 # least squares: a handle 300 mm from its points still pulls (a 30 mm Cauchy scale would not)
 LABEL_CAUCHY = 0.3
-LABEL_STAGES = (LABEL_CAUCHY, WIDE_CAUCHY, CAUCHY)
+MIN_PART = 8  # points: a labelled part with fewer does not count in ``part_inliers``
 
 
 @dataclass(frozen=True)
@@ -72,6 +78,9 @@ class FitResult:
     inliers: float  # share of points within 3 CAUCHY of the surface
     iterations: int
     free: float = 0.0  # m: surface where the camera saw through, per observed point (robust)
+    # with labels: the smallest share, over the labelled parts, of a part's points within
+    # 3 CAUCHY of that part's own shapes (a fit turned 180 deg leaves the front's points off)
+    part_inliers: float = 1.0
 
 
 def rotation_exp(w: np.ndarray) -> np.ndarray:
@@ -202,12 +211,23 @@ def global_init(
 # -- free space ------------------------------------------------------------------------------
 
 
-def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndarray:
+def free_space(
+    points: np.ndarray,
+    camera: np.ndarray,
+    seed: int = 0,
+    margin: float = 0.3,
+    grid: int = 50,
+    silhouette: float = SILHOUETTE,
+    n_rays: int = FREE_RAYS,
+) -> np.ndarray:
     """Points the camera saw through, where the fitted surface must not be: a little in front
     of every observed point, and along the rays just outside the cloud's outline (rays that met
     nothing within the cloud's depth range: the silhouette). The outline is read off the rays'
     gnomonic projection, which needs no intrinsics: a ray is free when no observed ray lies
-    within ``SILHOUETTE`` times their typical spacing."""
+    within ``SILHOUETTE`` times their typical spacing. The outline's rays are drawn within
+    ``margin`` times the cloud's extent of it, on a grid of ``grid`` steps across the extent
+    (finer: the seen-through band starts nearer the outline, which a dense cloud allows, as
+    does a ``silhouette`` of fewer spacings), ``n_rays`` of them."""
     rays = points - camera
     dist = np.linalg.norm(rays, axis=1)
     unit = rays / np.maximum(dist, 1e-9)[:, None]
@@ -230,14 +250,14 @@ def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndar
     tree = cKDTree(a)
     spacing = float(np.median(tree.query(a, k=2)[0][:, 1]))
     lo, hi = a.min(axis=0), a.max(axis=0)
-    margin = 0.3 * (hi - lo) + 4 * spacing
-    step = max(spacing, float((hi - lo).max()) / 50)
+    margin = margin * (hi - lo) + 4 * spacing
+    step = max(spacing, float((hi - lo).max()) / grid)
     gu = np.arange(lo[0] - margin[0], hi[0] + margin[0], step)
     gv = np.arange(lo[1] - margin[1], hi[1] + margin[1], step)
     grid = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
-    free = grid[tree.query(grid)[0] > SILHOUETTE * max(spacing, step / 2)]
-    if len(free) > FREE_RAYS:
-        free = free[rng.choice(len(free), FREE_RAYS, replace=False)]
+    free = grid[tree.query(grid)[0] > silhouette * max(spacing, step / 2)]
+    if len(free) > n_rays:
+        free = free[rng.choice(len(free), n_rays, replace=False)]
     dirs = c + free[:, :1] * e1 + free[:, 1:] * e2
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
@@ -267,18 +287,25 @@ class Fitter:
         joints: Mapping[str, float],
         cauchy: float = CAUCHY,
         labels: np.ndarray | None = None,
+        strict: bool = True,
     ):
         """``labels`` (N,) part names of the points ``run`` will get (``perception.labels``):
-        each point is then measured against its own part's shapes."""
-        self.concept, self.cauchy = concept, cauchy
+        each point is then measured against its own part's shapes. ``strict``: refuse steps
+        that break a requirement, and start from ``params`` made feasible; otherwise start
+        from ``params`` as they are and let the iterates cross requirements."""
+        self.concept, self.cauchy, self.strict = concept, cauchy, strict
         self.prior = PRIOR_WEIGHT if labels is None else LABEL_PRIOR
         inst = feasible_instance(concept, params)
         if joints:
             inst = inst.with_joints(dict(joints))
         self.pfix = inst.p.copy()
+        if not strict:
+            idx = list(float_index(concept))
+            self.pfix[idx] = concept.pack(dict(params))[idx]
         shapes = tuple(ShapeTree(inst).shapes)
         self.model: SdfModel | PartsModel
         self.masks: np.ndarray | None = None
+        self.labels = labels
         if labels is None:
             self.model = sdf_model(concept, shapes)
         else:
@@ -292,7 +319,7 @@ class Fitter:
                 hi += list(np.atleast_1d(s.hi))
         self.lo, self.hi = np.array(lo, float), np.array(hi, float)
         self.span = np.maximum(self.hi - self.lo, 1e-6)
-        self.theta0 = inst.p[idx].copy()
+        self.theta0 = self.pfix[idx].copy()
         self.q0 = inst.q.copy()
         self.present = [concept.joint_index[n] for n in inst.joints]
 
@@ -404,11 +431,26 @@ class Fitter:
         _, _, dd = self.residuals(st, _transform(frame, points), free_local, False)
         df = self.distances(st, free_local, False)[0]
         seen = float(np.sum(np.minimum(np.maximum(-df, 0.0), 3 * CAUCHY))) / len(points)
-        return replace(self._result(st, dd, done), free=FREE_WEIGHT * seen)
+        return replace(
+            self._result(st, dd, done), free=FREE_WEIGHT * seen, part_inliers=self._parts(dd)
+        )
+
+    def _parts(self, dd: np.ndarray) -> float:
+        """The worst labelled part's share of points on its own shapes (1 without labels);
+        parts with fewer than ``MIN_PART`` points do not count."""
+        if self.labels is None:
+            return 1.0
+        near = np.abs(dd) < 3 * CAUCHY
+        shares = [
+            float(near[self.labels == n].mean())
+            for n in np.unique(self.labels)
+            if (self.labels == n).sum() >= MIN_PART
+        ]
+        return min(shares, default=1.0)
 
     def _step(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
         theta = np.clip(st.theta + step[:nt], self.lo, self.hi)
-        if not self.feasible(theta):
+        if self.strict and not self.feasible(theta):
             return None
         q = st.q.copy()
         if nq:
@@ -539,7 +581,8 @@ def fit(
 LABEL_SCREEN = 5  # near-least-squares iterations per labelled start before the best is kept
 LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane)
 LABEL_POINTS = 384  # the labelled fit's points (every part keeps a share: ``subsample``)
-LABEL_FREE = 384  # and free-space points
+LABEL_FREE = 768  # and free-space points
+LABEL_MARGIN = 0.1  # of the extent: the band outside the outline the free rays are drawn in
 
 
 def labelled_fit(
@@ -562,15 +605,17 @@ def labelled_fit(
     plane faces the camera. Each is screened by ``LABEL_SCREEN`` iterations of the first stage,
     the best goes on through the narrower scales."""
     rng = np.random.default_rng(seed)
+    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    # the outline from every point: a subsample's wider spacing would start the seen-through
+    # space centimetres outside it (4 spacings), where a too tall cabinet is not caught
+    free = free_space(points, cam, seed, LABEL_MARGIN)
     keep = subsample(labels, LABEL_POINTS, rng)
     points, labels = points[keep], labels[keep]
     base = concept.instantiate().params
     if init:
         base.update(init)
     base = labelled_variant(concept, base, labels)
-    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
     hint = None if pose_hint is None else np.asarray(pose_hint, float)
-    free = free_space(points, cam, seed)
     if len(free) > LABEL_FREE:
         free = free[rng.choice(len(free), LABEL_FREE, replace=False)]
     inst = feasible_instance(concept, base)
@@ -578,7 +623,7 @@ def labelled_fit(
     cands: list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]] = []
     if hint is not None:
         cands.append((0.0, hint, base, states[0]))
-    if facing and camera is None and (hint is None or init):
+    if facing and camera is None:  # a hint is screened against the facing planes too
         planes = plane_starts(concept, points, inst.params, states, camera, seed, draws=0)
         cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 2]
     if not cands:
@@ -592,11 +637,17 @@ def labelled_fit(
     if not tried:  # every start lost a labelled part: start from the labels' own variant
         tried.append(_stage(concept, points, labels, free, cands[0][1], base, states[0], 0.3))
     best = min(tried, key=_score)
-    for scale, steps in ((LABEL_CAUCHY, 15), (WIDE_CAUCHY, LABEL_SCREEN), (CAUCHY, iterations)):
+    for scale, steps in ((LABEL_CAUCHY, 15), (WIDE_CAUCHY, LABEL_SCREEN)):
         best = _stage(
             concept, points, labels, free, best.pose, best.params, best.joints, scale, steps
         )
-    return best
+    # the last stage keeps the requirements (a real instance meets them), from the nearest
+    # start that meets them: the earlier stages may cross them on the way (a height and a
+    # handle's place move together), which a strict fit's refused steps could not
+    params = dict(feasible_instance(concept, best.params).params)
+    return _stage(
+        concept, points, labels, free, best.pose, params, best.joints, CAUCHY, iterations, True
+    )
 
 
 def _resolves(concept: Concept, params: Mapping[str, Any], names: list[str]) -> bool:
@@ -645,12 +696,13 @@ def _stage(
     joints: Mapping[str, float],
     scale: float,
     iterations: int = LABEL_SCREEN,
+    strict: bool = False,
 ) -> FitResult:
-    """A labelled fit at one robust scale from one start."""
+    """A labelled fit at one robust scale from one start (``strict``: see ``Fitter``)."""
     try:
-        fitter = Fitter(concept, params, joints, scale, labels)
+        fitter = Fitter(concept, params, joints, scale, labels, strict)
     except ParameterError:  # a scaled start that breaks a requirement
-        fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels)
+        fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels, strict)
     return fitter.run(points, pose, np.zeros(3), iterations, free)
 
 
