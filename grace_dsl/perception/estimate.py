@@ -17,12 +17,15 @@ import numpy as np
 
 from grace_dsl.perception.errors import PointCloudError
 from grace_dsl.perception.fit import CAUCHY, fit
+from grace_dsl.perception.labels import check_labels, subsample
 from grace_dsl.perception.types import Estimate
 from grace_dsl.perception.views import join_params, split_params
 from grace_dsl.runtime.library import Concept
 
 MIN_POINTS = 32
 MAX_POINTS = 768  # the fit's cost grows with the points; more add little at 2 mm noise
+# a labelled cloud is kept up to this: its free space is read from the full outline
+MAX_LABELLED = 20000
 NOISE_FLOOR = 0.0025  # m: a residual below this is what a 2 mm sensor gives on the right model
 FULL_COVER = 128  # points: fewer lower the confidence in proportion
 
@@ -50,11 +53,14 @@ def check_cloud(points: Any) -> np.ndarray:
     return pts
 
 
-def confidence(residual: float, inliers: float, n_points: int) -> float:
+def confidence(residual: float, inliers: float, n_points: int, parts: float = 1.0) -> float:
     """In [0, 1]: falls with the residual beyond the sensor's noise, with the share of points
-    off the surface, and with few points."""
+    off the surface, with few points, and (labelled fits) with the share of the worst part's
+    points off that part's own shapes: a fit that lays a box's front on its back, or a handle
+    beside its points, is wrong however well the union of shapes fits the cloud."""
     fit_term = math.exp(-max(0.0, residual - NOISE_FLOOR) / NOISE_FLOOR)
-    return float(np.clip(inliers**2 * fit_term * min(1.0, n_points / FULL_COVER), 0.0, 1.0))
+    cover = min(1.0, n_points / FULL_COVER)
+    return float(np.clip(inliers**2 * parts**2 * fit_term * cover, 0.0, 1.0))
 
 
 def estimate(
@@ -65,9 +71,16 @@ def estimate(
     init: Estimate | Mapping[str, Any] | None = None,
     camera: Any = None,
     seed: int = 0,
+    labels: Any = None,
 ) -> Estimate:
     """Estimate ``concept`` from ``points`` (N, 3), metres, in the camera frame (or give
     ``camera``, the camera's position in the points' frame).
+
+    ``labels``: per point, the name of the part it shows (a sequence of N str: a link such as
+    ``drawer``, a part such as ``handle``, a shape such as ``handle.bar``, or ``""`` for none;
+    ``perception.labels``, ``labelled_points`` builds both from clouds per part). Each point
+    is then measured against its own part, which fixes a handle's place and a box's facing.
+    Wrong length or an unknown name raises ``LabelError``.
 
     ``pose_hint``: a 4x4 concept pose near the truth (skips the rotation search). ``init``: a
     learned ``Estimate`` (its parameters, pose and joints start the fit) or parameter values
@@ -78,8 +91,13 @@ def estimate(
 
         concept = load_library()[concept]
     pts = check_cloud(points)
-    if len(pts) > MAX_POINTS:
-        pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
+    parts = None if labels is None else check_labels(labels, len(pts))
+    if parts is None:
+        if len(pts) > MAX_POINTS:
+            pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
+    elif len(pts) > MAX_LABELLED:  # the labelled fit subsamples per part itself
+        keep = subsample(parts, MAX_LABELLED, np.random.default_rng(seed))
+        pts, parts = pts[keep], parts[keep]
     params, joints, source = None, None, "fit"
     if isinstance(init, Estimate):
         params = join_params(concept, init.params, dict(init.discrete))
@@ -94,7 +112,14 @@ def estimate(
     hint = None if pose_hint is None else np.asarray(pose_hint, float).reshape(4, 4)
     cam = None if camera is None else np.asarray(camera, float).reshape(3)
     result = fit(
-        concept, pts, camera=cam, pose_hint=hint, init=params, init_joints=joints, seed=seed
+        concept,
+        pts,
+        camera=cam,
+        pose_hint=hint,
+        init=params,
+        init_joints=joints,
+        seed=seed,
+        labels=parts,
     )
     floats, discrete = split_params(concept, result.params)
     return Estimate(
@@ -103,7 +128,7 @@ def estimate(
         pose=result.pose,
         joints=result.joints,
         residual=result.residual,
-        confidence=confidence(result.residual, result.inliers, len(pts)),
+        confidence=confidence(result.residual, result.inliers, len(pts), result.part_inliers),
         seconds=time.perf_counter() - start,
         source=source,
         discrete=discrete,
