@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -54,6 +55,11 @@ FRAMING = 3.0  # the camera stands this many bounding radii from the object's ce
 IMAGE = (320, 240)  # pixels (width, height)
 PART = "handle"  # the part whose pixels a look counts (the part most grasps hold)
 MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
+#: of the fit's points, at most this share is the handle's (all of its pixels when fewer): a
+#: uniform draw gives a cabinet's handle a handful of points, too few to measure it by
+PART_SHARE = 0.35
+LOOKS = 3  # at most this many looks per episode: the protocol's and two the agent chooses
+SAME_VIEW = 20.0  # degrees: a view this near one already taken would show nothing new
 
 
 class EstimateRefused(PerceptionError):
@@ -62,9 +68,12 @@ class EstimateRefused(PerceptionError):
     ``estimate`` holds the refused estimate (its residual and confidence say why); take another
     view, or lower ``min_confidence`` knowingly."""
 
-    def __init__(self, message: str, perceived: Perceived | None = None):
+    def __init__(
+        self, message: str, perceived: Perceived | None = None, sight: Sight | None = None
+    ):
         super().__init__(message)
         self.perceived = perceived
+        self.sight = sight if sight is not None else perceived.sight if perceived else None
 
 
 @dataclass(frozen=True)
@@ -77,6 +86,18 @@ class View:
     def opposite(self) -> View:
         """The view from the other side of the object (azimuth + 180 degrees)."""
         return View((self.azimuth + 180.0) % 360.0, self.elevation)
+
+
+@dataclass(frozen=True)
+class Sight:
+    """What a look showed in the world frame, for choosing the next view: where the handle's
+    pixels were (their centroid, None if none were seen) and where the estimated front points
+    (the fitted concept's +z, None when no fit ran)."""
+
+    view: View
+    centre: tuple[float, float, float]  # where the camera was aimed
+    handle_at: tuple[float, float, float] | None = None
+    front: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -95,6 +116,7 @@ class Perceived:
     seconds: float
     estimate: Estimate | None = field(default=None, compare=False, repr=False)
     part_points: int = -1  # the handle's pixels in view (-1: the concept has no handle)
+    sight: Sight | None = field(default=None, compare=False, repr=False)
 
     def instance(self, concept: Concept) -> Instance:
         """The agent's model of the object: the estimated instance at its world pose."""
@@ -228,47 +250,118 @@ def object_cloud(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The object's camera-frame cloud (OpenCV axes: the segmenter's masks for the concept's
     name joined) from the depth with the sensor's noise (seeded), and that of its ``part``
-    (None when not asked for)."""
+    (None when not asked for or not in view)."""
+    cloud = labelled_cloud(shot, rgb, concept, seed, segmenter, noise)
+    if not part:
+        return cloud.points, None
+    on_part = cloud.labels == part
+    return cloud.points, cloud.points[on_part] if on_part.any() else None
+
+
+@dataclass(frozen=True)
+class LabelledCloud:
+    """The object's camera-frame points and, per point, the name of the region it lies on:
+    its part where the segmenter tells one (``handle``), else its link (``drawer``)."""
+
+    points: np.ndarray  # (N, 3)
+    labels: np.ndarray  # (N,) str
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def count(self, label: str) -> int:
+        return int(np.count_nonzero(self.labels == label))
+
+    def select(self, n: int, part: str, share: float, seed: int) -> LabelledCloud:
+        """At most ``n`` points: every point of ``part`` up to ``share`` of ``n``, the rest
+        drawn uniformly (seeded) from the others. Why: a uniform draw of a cabinet gives its
+        handle a handful of points, too few to measure a 15 mm bar by."""
+        if len(self.points) <= n:
+            return self
+        rng = np.random.default_rng(seed)
+        on = np.flatnonzero(self.labels == part)
+        off = np.flatnonzero(self.labels != part)
+        if len(on) > int(share * n):
+            on = rng.choice(on, int(share * n), replace=False)
+        off = rng.choice(off, min(len(off), n - len(on)), replace=False)
+        keep = np.sort(np.concatenate([on, off]))
+        return LabelledCloud(self.points[keep], self.labels[keep])
+
+
+def labelled_cloud(
+    shot: DepthRender,
+    rgb: np.ndarray,
+    concept: str,
+    seed: int,
+    segmenter: Segmenter | None = None,
+    noise: float = NOISE,
+) -> LabelledCloud:
+    """The object's cloud with a label per point, from the segmenter's masks for the concept's
+    name: a pixel in several masks takes the smallest one's name (a handle inside its drawer's
+    link is the handle), so any segmenter that names parts and links gives the labels. The
+    depth gets the sensor's noise (seeded); pixels with no return are dropped."""
     seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
     depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
     masks = seg.segment(rgb, depth, concept)
-    if not masks:
-        return np.zeros((0, 3)), None
-    mask = np.logical_or.reduce(list(masks.values()))
-    points = back_project(depth, shot.intrinsics, mask)
-    found = seg.segment(rgb, depth, part) if part else {}
-    if not found:
-        return points, None
-    part_mask = np.logical_or.reduce(list(found.values())) & mask
-    part_points = back_project(depth, shot.intrinsics, part_mask)
-    return points, part_points
+    names = sorted(masks, key=lambda k: (-int(np.count_nonzero(masks[k])), k))
+    region = np.full(depth.shape, -1, dtype=np.int32)
+    for k, name in enumerate(names):  # largest first: smaller regions overwrite
+        region[np.asarray(masks[name], bool)] = k
+    inside = region >= 0
+    points = back_project(depth, shot.intrinsics, inside)
+    table = np.array(names if names else [""], dtype=object)
+    labels = table[region[inside & (depth > 0)]].astype(str)
+    return LabelledCloud(points, labels)
 
 
 def estimate_cloud(
     concept: Concept,
-    points: np.ndarray,
+    points: np.ndarray | LabelledCloud,
     camera_pose: np.ndarray,
     seed: int = 0,
     fixed: Mapping[str, Any] | None = None,
 ) -> tuple[Estimate, np.ndarray]:
     """``eac.estimate`` on a camera-frame cloud, started from the shipped network (its
-    parameters and pose) where the concept has weights, with the ``fixed`` (non-float)
-    parameters given; the estimate and the concept's world pose."""
-    from grace_dsl.perception.estimate import estimate
+    parameters and pose, from the whole cloud) where the concept has weights, with the ``fixed``
+    (non-float) parameters given; the estimate and the concept's world pose.
+
+    A ``LabelledCloud`` is thinned to the fit's budget keeping the handle's points
+    (``LabelledCloud.select``) and its labels go to the fit where ``estimate`` takes them
+    (each point then measured against the shapes of its own part or link)."""
+    from grace_dsl.perception.estimate import MAX_POINTS, estimate
     from grace_dsl.perception.views import join_params
     from grace_dsl.perception.weights import shipped_path
 
+    cloud = points if isinstance(points, LabelledCloud) else None
+    whole = cloud.points if cloud is not None else np.asarray(points, float)
     init: dict[str, Any] = dict(fixed or {})
     hint = None
-    if shipped_path(concept.name).is_file():
+    if shipped_path(concept.name).is_file() and len(whole) >= 1:
         from grace_dsl.perception.learned import estimate_learned
 
-        learned = estimate_learned(concept, points)
+        learned = estimate_learned(concept, whole)
         init, hint = join_params(concept, learned.params, init), learned.pose
-    est = estimate(concept, points, init=init or None, pose_hint=hint, seed=seed)
+    extra: dict[str, Any] = {}
+    fit_points = whole
+    if cloud is not None:
+        chosen = cloud.select(MAX_POINTS, PART, PART_SHARE, seed)
+        fit_points = chosen.points
+        if _takes_labels():
+            extra["labels"] = chosen.labels
+    est = estimate(concept, fit_points, init=init or None, pose_hint=hint, seed=seed, **extra)
     if hint is not None:
         est = replace(est, source="learned+fit")
     return est, np.asarray(camera_pose, float) @ est.pose
+
+
+@cache
+def _takes_labels() -> bool:
+    """Whether perception's ``estimate`` takes per-point labels (``labels=``)."""
+    import inspect
+
+    from grace_dsl.perception.estimate import estimate
+
+    return "labels" in inspect.signature(estimate).parameters
 
 
 def fixed_params(concept: Concept, given: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -285,7 +378,7 @@ def fixed_params(concept: Concept, given: Mapping[str, Any] | None = None) -> di
 
 def perceive(
     concept: Concept,
-    points: np.ndarray,
+    points: np.ndarray | LabelledCloud,
     camera_pose: np.ndarray,
     view: View,
     seed: int = 0,
@@ -343,23 +436,33 @@ def look(
     min_confidence: float = MIN_CONFIDENCE,
     fixed: Mapping[str, Any] | None = None,
 ) -> Perceived:
-    """Render the world from ``view`` about ``target``, segment object ``index`` and estimate
-    its concept (``perceive``); also refused when the estimated front (the concept's +z, the
-    side a robot approaches, where its handle is) faces away from the camera: the view did not
-    show what the agent would grasp, or when a concept with a handle shows fewer than
-    ``MIN_PART_POINTS`` of its pixels."""
+    """Render the world from ``view`` about ``target``, segment object ``index`` with a label
+    per point (``labelled_cloud``) and estimate its concept (``perceive``); also refused when
+    the estimated front (the concept's +z, the side a robot approaches, where its handle is)
+    faces away from the camera: the view did not show what the agent would grasp, or when a
+    concept with a handle shows fewer than ``MIN_PART_POINTS`` of its pixels. A refusal
+    carries what was seen (``Sight``: the handle's pixels, the estimated front), from which
+    ``next_view`` chooses where to look next."""
     camera = camera_for(view, target, radius)
     frame, geoms = render_from(scene, model, data, camera)
     shot = object_shot(frame, scene, model, index, geoms)
-    wanted = PART if PART in _parts(concept) else ""
-    points, part = object_cloud(shot, frame.rgb, concept.name, seed, segmenter, part=wanted)
-    seen = -1 if not wanted else 0 if part is None else len(part)
+    cloud = labelled_cloud(shot, frame.rgb, concept.name, seed, segmenter)
+    wanted = PART in _parts(concept)
+    seen = cloud.count(PART) if wanted else -1
+    sight = Sight(view, tuple(float(v) for v in target), _handle_at(cloud, shot.camera_pose))
     if 0 <= seen < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
         raise EstimateRefused(
             f"{concept.name} from view {_view(view)}: {seen} pixels of its {PART} are in view "
-            f"(at least {MIN_PART_POINTS} needed); take another view"
+            f"(at least {MIN_PART_POINTS} needed); take another view",
+            sight=sight,
         )
-    got = perceive(concept, points, shot.camera_pose, view, seed, min_confidence, fixed, seen)
+    try:
+        got = perceive(concept, cloud, shot.camera_pose, view, seed, min_confidence, fixed, seen)
+    except EstimateRefused as exc:
+        if exc.perceived is None:
+            raise EstimateRefused(str(exc), sight=sight) from exc
+        raise EstimateRefused(str(exc), _seen(exc.perceived, sight)) from exc
+    got = _seen(got, sight)
     eye = camera.pose()[:3, 3]
     toward = (eye - got.pose[:3, 3]) / max(float(np.linalg.norm(eye - got.pose[:3, 3])), 1e-9)
     if float(got.pose[:3, 2] @ toward) <= 0.0:
@@ -371,19 +474,93 @@ def look(
     return got
 
 
+def _seen(got: Perceived, sight: Sight) -> Perceived:
+    """``got`` with its sight, the estimated front included."""
+    front = tuple(float(v) for v in got.pose[:3, 2])
+    return replace(got, sight=replace(sight, front=front))
+
+
+def _handle_at(cloud: LabelledCloud, camera_pose: np.ndarray) -> tuple[float, float, float] | None:
+    """The world centroid of the handle's points (None when none are in view)."""
+    on = cloud.labels == PART
+    if not on.any():
+        return None
+    c = np.asarray(camera_pose, float) @ np.append(cloud.points[on].mean(axis=0), 1.0)
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+def next_view(first: View, sights: Sequence[Sight]) -> View:
+    """Where to look after the refused ``sights`` (a robot walking round the object; the same
+    elevation as the first look). In order of what the looks showed: toward the face where the
+    handle's pixels were seen (the horizontal direction from the aimed-at centre to their
+    centroid: a handle sits on the front), else toward the face the estimated front points
+    at, else from the opposite side of the last view (from behind, nothing of the front was
+    seen). A direction within ``SAME_VIEW`` degrees of a view already taken is turned by 45,
+    then 90 degrees either way instead, so no look repeats. Deterministic: a function of the sights."""
+    taken = [s.view.azimuth for s in sights]
+    azimuth = None
+    for s in reversed(sights):
+        toward = _toward(s.centre, s.handle_at)
+        if toward is None and s.front is not None:
+            toward = _azimuth(s.front)
+        if toward is not None:
+            azimuth = toward
+            break
+    if azimuth is None:
+        azimuth = (taken[-1] + 180.0) % 360.0 if taken else first.azimuth
+    for turn in (0.0, 45.0, -45.0, 90.0, -90.0, 180.0):
+        cand = (azimuth + turn) % 360.0
+        if all(_apart(cand, t) >= SAME_VIEW for t in taken):
+            return View(round(cand, 6), first.elevation)
+    return View((azimuth + 180.0) % 360.0, first.elevation)
+
+
+def _toward(
+    centre: tuple[float, float, float], at: tuple[float, float, float] | None
+) -> float | None:
+    """The azimuth (degrees) from ``centre`` to ``at`` in the horizontal plane (None when
+    ``at`` is None or right above ``centre``)."""
+    if at is None:
+        return None
+    d = np.asarray(at, float) - np.asarray(centre, float)
+    return _azimuth(tuple(d)) if math.hypot(d[0], d[1]) > 1e-3 else None
+
+
+def _azimuth(direction: Sequence[float]) -> float | None:
+    """The azimuth (degrees, world xy from +x toward +y: the camera's convention) of a
+    direction, None when it is (nearly) vertical."""
+    x, y = float(direction[0]), float(direction[1])
+    if math.hypot(x, y) < 0.2 * max(1e-9, float(np.linalg.norm(direction))):
+        return None
+    return math.degrees(math.atan2(y, x)) % 360.0
+
+
+def _apart(a: float, b: float) -> float:
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
 def look_around(
-    views: Sequence[View],
+    views: Sequence[View] | View,
     see: Any,
+    looks: int = 0,
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
-    """Try ``see(view)`` for each view in turn until one is not refused: the first accepted
-    estimate (None if every view was refused) and an account of every look."""
+    """Try ``see(view)`` until one is not refused: the first accepted estimate (None if every
+    look was refused) and an account of every look. Given a list, its views in turn; given one
+    view, that first and then up to ``looks`` in all, each next one chosen by ``next_view``
+    from what the refused looks showed."""
+    fixed = list(views) if not isinstance(views, View) else None
+    first = views if isinstance(views, View) else fixed[0] if fixed else View(0.0, 45.0)
+    limit = len(fixed) if fixed is not None else max(1, looks)
     account: list[dict[str, Any]] = []
-    for view in views:
+    sights: list[Sight] = []
+    for k in range(limit):
+        view = fixed[k] if fixed is not None else first if k == 0 else next_view(first, sights)
         try:
             got = see(view)
         except EstimateRefused as exc:
             entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
             account.append({**entry, "refused": str(exc)})
+            sights.append(exc.sight if exc.sight is not None else Sight(view, (0.0, 0.0, 0.0)))
             continue
         account.append(got.summary())
         return got, account
