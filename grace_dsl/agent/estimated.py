@@ -90,9 +90,10 @@ class View:
 
 @dataclass(frozen=True)
 class Sight:
-    """What a look showed in the world frame, for choosing the next view: where the handle's
-    pixels were (their centroid, None if none were seen) and where the estimated front points
-    (the fitted concept's +z, None when no fit ran)."""
+    """What a look showed in the world frame, for choosing the next view: where the pixels of
+    the part to hold were (the handle's, else the moved link's: their centroid, None if none
+    were seen) and where the estimated front points (the fitted concept's +z, None when no fit
+    ran)."""
 
     view: View
     centre: tuple[float, float, float]  # where the camera was aimed
@@ -265,12 +266,23 @@ class LabelledCloud:
 
     points: np.ndarray  # (N, 3)
     labels: np.ndarray  # (N,) str
+    #: (N,) str, the largest region holding each point: its link (a part lies in its link)
+    owners: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points)
 
+    def on(self, label: str) -> np.ndarray:
+        """Points labelled ``label`` or a variant of it (``handle@bar`` is a ``handle``)."""
+        return np.array([lab.split("@")[0] == label for lab in self.labels], bool).reshape(-1)
+
     def count(self, label: str) -> int:
-        return int(np.count_nonzero(self.labels == label))
+        return int(np.count_nonzero(self.on(label)))
+
+    def owned_by(self, link: str) -> np.ndarray:
+        """Points on ``link`` (its parts' included)."""
+        owners = self.labels if self.owners is None else self.owners
+        return np.asarray(owners == link, bool)
 
     def select(self, n: int, part: str, share: float, seed: int) -> LabelledCloud:
         """At most ``n`` points: every point of ``part`` up to ``share`` of ``n``, the rest
@@ -279,13 +291,14 @@ class LabelledCloud:
         if len(self.points) <= n:
             return self
         rng = np.random.default_rng(seed)
-        on = np.flatnonzero(self.labels == part)
-        off = np.flatnonzero(self.labels != part)
+        mask = self.on(part)
+        on, off = np.flatnonzero(mask), np.flatnonzero(~mask)
         if len(on) > int(share * n):
             on = rng.choice(on, int(share * n), replace=False)
         off = rng.choice(off, min(len(off), n - len(on)), replace=False)
         keep = np.sort(np.concatenate([on, off]))
-        return LabelledCloud(self.points[keep], self.labels[keep])
+        owners = None if self.owners is None else self.owners[keep]
+        return LabelledCloud(self.points[keep], self.labels[keep], owners)
 
 
 def labelled_cloud(
@@ -298,20 +311,24 @@ def labelled_cloud(
 ) -> LabelledCloud:
     """The object's cloud with a label per point, from the segmenter's masks for the concept's
     name: a pixel in several masks takes the smallest one's name (a handle inside its drawer's
-    link is the handle), so any segmenter that names parts and links gives the labels. The
-    depth gets the sensor's noise (seeded); pixels with no return are dropped."""
+    link is the handle) as its label and the largest one's (the drawer) as its owner, so any
+    segmenter that names parts and links gives both. The depth gets the sensor's noise
+    (seeded); pixels with no return are dropped."""
     seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
     depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
     masks = seg.segment(rgb, depth, concept)
     names = sorted(masks, key=lambda k: (-int(np.count_nonzero(masks[k])), k))
     region = np.full(depth.shape, -1, dtype=np.int32)
+    owner = np.full(depth.shape, -1, dtype=np.int32)
     for k, name in enumerate(names):  # largest first: smaller regions overwrite
         region[np.asarray(masks[name], bool)] = k
+    for k in reversed(range(len(names))):  # largest last: it owns what it holds
+        owner[np.asarray(masks[names[k]], bool)] = k
     inside = region >= 0
     points = back_project(depth, shot.intrinsics, inside)
     table = np.array(names if names else [""], dtype=object)
-    labels = table[region[inside & (depth > 0)]].astype(str)
-    return LabelledCloud(points, labels)
+    kept = inside & (depth > 0)
+    return LabelledCloud(points, table[region[kept]].astype(str), table[owner[kept]].astype(str))
 
 
 def estimate_cloud(
@@ -435,27 +452,32 @@ def look(
     segmenter: Segmenter | None = None,
     min_confidence: float = MIN_CONFIDENCE,
     fixed: Mapping[str, Any] | None = None,
+    hold: str = "",
 ) -> Perceived:
     """Render the world from ``view`` about ``target``, segment object ``index`` with a label
     per point (``labelled_cloud``) and estimate its concept (``perceive``); also refused when
     the estimated front (the concept's +z, the side a robot approaches, where its handle is)
-    faces away from the camera: the view did not show what the agent would grasp, or when a
-    concept with a handle shows fewer than ``MIN_PART_POINTS`` of its pixels. A refusal
-    carries what was seen (``Sight``: the handle's pixels, the estimated front), from which
+    faces away from the camera: the view did not show what the agent would grasp, or when
+    fewer than ``MIN_PART_POINTS`` pixels are seen of the concept's handle (if it has one) or
+    of link ``hold`` (the link the task moves: a door's leaf is hidden from behind). A refusal
+    carries what was seen (``Sight``: where those pixels were, the estimated front), from which
     ``next_view`` chooses where to look next."""
     camera = camera_for(view, target, radius)
     frame, geoms = render_from(scene, model, data, camera)
     shot = object_shot(frame, scene, model, index, geoms)
     cloud = labelled_cloud(shot, frame.rgb, concept.name, seed, segmenter)
-    wanted = PART in _parts(concept)
+    wanted = any(p.split("@")[0] == PART for p in _parts(concept))
     seen = cloud.count(PART) if wanted else -1
-    sight = Sight(view, tuple(float(v) for v in target), _handle_at(cloud, shot.camera_pose))
-    if 0 <= seen < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
-        raise EstimateRefused(
-            f"{concept.name} from view {_view(view)}: {seen} pixels of its {PART} are in view "
-            f"(at least {MIN_PART_POINTS} needed); take another view",
-            sight=sight,
-        )
+    held = cloud.owned_by(hold) if hold else np.zeros(len(cloud), bool)
+    at = cloud.on(PART) if wanted else held
+    sight = Sight(view, tuple(float(v) for v in target), _centroid(cloud, at, shot.camera_pose))
+    for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
+        if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
+            raise EstimateRefused(
+                f"{concept.name} from view {_view(view)}: {n} pixels of its {name} are in view "
+                f"(at least {MIN_PART_POINTS} needed); take another view",
+                sight=sight,
+            )
     try:
         got = perceive(concept, cloud, shot.camera_pose, view, seed, min_confidence, fixed, seen)
     except EstimateRefused as exc:
@@ -480,9 +502,10 @@ def _seen(got: Perceived, sight: Sight) -> Perceived:
     return replace(got, sight=replace(sight, front=front))
 
 
-def _handle_at(cloud: LabelledCloud, camera_pose: np.ndarray) -> tuple[float, float, float] | None:
-    """The world centroid of the handle's points (None when none are in view)."""
-    on = cloud.labels == PART
+def _centroid(
+    cloud: LabelledCloud, on: np.ndarray, camera_pose: np.ndarray
+) -> tuple[float, float, float] | None:
+    """The world centroid of the points ``on`` (None when there are none)."""
     if not on.any():
         return None
     c = np.asarray(camera_pose, float) @ np.append(cloud.points[on].mean(axis=0), 1.0)
@@ -492,11 +515,11 @@ def _handle_at(cloud: LabelledCloud, camera_pose: np.ndarray) -> tuple[float, fl
 def next_view(first: View, sights: Sequence[Sight]) -> View:
     """Where to look after the refused ``sights`` (a robot walking round the object; the same
     elevation as the first look). In order of what the looks showed: toward the face where the
-    handle's pixels were seen (the horizontal direction from the aimed-at centre to their
-    centroid: a handle sits on the front), else toward the face the estimated front points
-    at, else from the opposite side of the last view (from behind, nothing of the front was
-    seen). A direction within ``SAME_VIEW`` degrees of a view already taken is turned by 45,
-    then 90 degrees either way instead, so no look repeats. Deterministic: a function of the sights."""
+    pixels of the part to hold were seen (the horizontal direction from the aimed-at centre to
+    their centroid: a handle sits on the front), else toward the face the estimated front
+    points at, else from the opposite side of the last view (from behind, nothing of the front
+    was seen). A direction within ``SAME_VIEW`` degrees of a view already taken is turned by
+    45, then 90 degrees either way instead, so no look repeats. A function of the sights."""
     taken = [s.view.azimuth for s in sights]
     azimuth = None
     for s in reversed(sights):

@@ -84,7 +84,8 @@ def estimated_episode(
     task, draw, ranges, true = start.task, start.draw, start.ranges, start.inst
     concept = true.concept
     first = View(draw.camera["azimuth"], draw.camera["elevation"])
-    got, account = perceive_episode(true, first, seed, min_confidence, looks)
+    hold = str(concept.joints[task.joint]["child"])  # the link the task moves
+    got, account = perceive_episode(true, first, seed, min_confidence, looks, hold)
     if got is None:
         early = _early(config, seed, task, "no_feasible_grasp", _refused(account), started,
                        draw, true)  # fmt: skip
@@ -119,11 +120,13 @@ def perceive_episode(
     seed: int,
     min_confidence: float = MIN_CONFIDENCE,
     looks: int = LOOKS,
+    hold: str = "",
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
     """Look at the true instance (rendered by MuJoCo, no floor: the episode's world has none)
     from ``first``, then from views chosen from what the refused looks showed
     (``estimated.next_view``), until one gives an estimate the agent accepts or ``looks``
-    looks were taken. Look k's sensor noise has seed ``seed + 7919 k``."""
+    looks were taken (``hold``: the link the task moves, which a look must show). Look k's
+    sensor noise has seed ``seed + 7919 k``."""
     scene, model, data = _scene(true)
     centre, radius = frame_of(true)
     taken: list[View] = []
@@ -132,7 +135,7 @@ def perceive_episode(
         taken.append(view)
         return look(scene, model, data, 0, true.concept, view, centre, radius,
                     seed + 7919 * (len(taken) - 1), min_confidence=min_confidence,
-                    fixed=fixed_params(true.concept, true.params))  # fmt: skip
+                    fixed=fixed_params(true.concept, true.params), hold=hold)  # fmt: skip
 
     return look_around(first, see, looks)
 
