@@ -17,6 +17,7 @@ import numpy as np
 
 from grace_dsl.perception.errors import PointCloudError
 from grace_dsl.perception.fit import CAUCHY, fit
+from grace_dsl.perception.labels import check_labels, subsample
 from grace_dsl.perception.types import Estimate
 from grace_dsl.perception.views import join_params, split_params
 from grace_dsl.runtime.library import Concept
@@ -65,9 +66,16 @@ def estimate(
     init: Estimate | Mapping[str, Any] | None = None,
     camera: Any = None,
     seed: int = 0,
+    labels: Any = None,
 ) -> Estimate:
     """Estimate ``concept`` from ``points`` (N, 3), metres, in the camera frame (or give
     ``camera``, the camera's position in the points' frame).
+
+    ``labels``: per point, the name of the part it shows (a sequence of N str: a link such as
+    ``drawer``, a part such as ``handle``, a shape such as ``handle.bar``, or ``""`` for none;
+    ``perception.labels``, ``labelled_points`` builds both from clouds per part). Each point
+    is then measured against its own part, which fixes a handle's place and a box's facing.
+    Wrong length or an unknown name raises ``LabelError``.
 
     ``pose_hint``: a 4x4 concept pose near the truth (skips the rotation search). ``init``: a
     learned ``Estimate`` (its parameters, pose and joints start the fit) or parameter values
@@ -78,8 +86,14 @@ def estimate(
 
         concept = load_library()[concept]
     pts = check_cloud(points)
+    parts = None if labels is None else check_labels(labels, len(pts))
     if len(pts) > MAX_POINTS:
-        pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
+        rng = np.random.default_rng(seed)
+        if parts is None:
+            pts = pts[rng.choice(len(pts), MAX_POINTS, replace=False)]
+        else:
+            keep = subsample(parts, MAX_POINTS, rng)
+            pts, parts = pts[keep], parts[keep]
     params, joints, source = None, None, "fit"
     if isinstance(init, Estimate):
         params = join_params(concept, init.params, dict(init.discrete))
@@ -94,7 +108,14 @@ def estimate(
     hint = None if pose_hint is None else np.asarray(pose_hint, float).reshape(4, 4)
     cam = None if camera is None else np.asarray(camera, float).reshape(3)
     result = fit(
-        concept, pts, camera=cam, pose_hint=hint, init=params, init_joints=joints, seed=seed
+        concept,
+        pts,
+        camera=cam,
+        pose_hint=hint,
+        init=params,
+        init_joints=joints,
+        seed=seed,
+        labels=parts,
     )
     floats, discrete = split_params(concept, result.params)
     return Estimate(

@@ -26,7 +26,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from grace_dsl.perception.camera import look_at
-from grace_dsl.perception.model import SdfModel, sdf_model
+from grace_dsl.perception.labels import label_masks
+from grace_dsl.perception.model import PartsModel, SdfModel, parts_model, sdf_model
 from grace_dsl.perception.start import feasible_instance, plane_starts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
@@ -50,6 +51,10 @@ JOINT_STARTS = (0.0, 0.5, 0.9)  # of each joint's range
 MODEL_POINTS = 1500
 PLANE_STARTS = 5  # of the facing-plane starts, screened with the others
 LEARNED_PLANES = 2  # of them screened against a learned start's pose
+# m: with part labels a point's own part is where it belongs, so the first stage is nearly
+# least squares: a handle 300 mm from its points still pulls (a 30 mm Cauchy scale would not)
+LABEL_CAUCHY = 0.3
+LABEL_STAGES = (LABEL_CAUCHY, WIDE_CAUCHY, CAUCHY)
 
 
 @dataclass(frozen=True)
@@ -258,13 +263,23 @@ class Fitter:
         params: Mapping[str, Any],
         joints: Mapping[str, float],
         cauchy: float = CAUCHY,
+        labels: np.ndarray | None = None,
     ):
+        """``labels`` (N,) part names of the points ``run`` will get (``perception.labels``):
+        each point is then measured against its own part's shapes."""
         self.concept, self.cauchy = concept, cauchy
         inst = feasible_instance(concept, params)
         if joints:
             inst = inst.with_joints(dict(joints))
         self.pfix = inst.p.copy()
-        self.model: SdfModel = sdf_model(concept, tuple(ShapeTree(inst).shapes))
+        shapes = tuple(ShapeTree(inst).shapes)
+        self.model: SdfModel | PartsModel
+        self.masks: np.ndarray | None = None
+        if labels is None:
+            self.model = sdf_model(concept, shapes)
+        else:
+            self.model = parts_model(concept, shapes)
+            self.masks = label_masks(labels, self.model.shapes, self.model.links, concept.name)
         idx = list(self.model.float_index)
         lo, hi = [], []
         for s in concept.params:
@@ -296,14 +311,7 @@ class Fitter:
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """Weighted residuals (and Jacobian) of data, free-space and prior terms at ``st``, with
         the points already in the frame of ``st.pose``; the third output is the data distances."""
-        m = self.model
-        pfix, w0 = self._p(st.theta), np.zeros(6)
-        pts = np.concatenate([y, free])
-        if with_jac:
-            d, g = m.gradient.batch(st.theta, pfix, st.q, w0, pts)
-            d, g = np.asarray(d).reshape(-1), np.asarray(g).reshape(len(pts), -1)
-        else:
-            d, g = np.asarray(m.value.batch(st.theta, pfix, st.q, w0, pts)).reshape(-1), None
+        d, g = self.distances(st, np.concatenate([y, free]), with_jac, len(y))
         n = len(y)
         dd, df = d[:n], d[n:]
         # Cauchy as IRLS: sqrt of the weight times the distance
@@ -318,6 +326,28 @@ class Fitter:
             jp[:, : len(prior)] = np.diag(PRIOR_WEIGHT / self.span)
             jac = np.concatenate([scale * wd[:, None] * g[:n], scale * wf[:, None] * g[n:], jp])
         return r, jac, dd
+
+    def distances(
+        self, st: _State, pts: np.ndarray, with_jac: bool, labelled: int = 0
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Distance (and its gradient) of the surface at ``pts`` (in the frame of ``st.pose``):
+        the first ``labelled`` points to their own part's shapes, the rest to every shape."""
+        m, pfix, w0 = self.model, self._p(st.theta), np.zeros(6)
+        if with_jac:
+            d, g = m.gradient.batch(st.theta, pfix, st.q, w0, pts)
+        else:
+            d, g = m.value.batch(st.theta, pfix, st.q, w0, pts), None
+        if self.masks is None:
+            d = np.asarray(d).reshape(-1)
+            return d, None if g is None else np.asarray(g).reshape(len(pts), -1)
+        d = np.asarray(d).reshape(len(pts), -1)
+        own = np.where(self.masks[:labelled], d[:labelled], np.inf)
+        k = np.concatenate([own.argmin(axis=1), d[labelled:].argmin(axis=1)])
+        rows = np.arange(len(pts))
+        if g is None:
+            return d[rows, k], None
+        g = np.asarray(g).reshape(len(pts), d.shape[1], -1)
+        return d[rows, k], g[rows, k]
 
     def run(
         self, points: np.ndarray, pose: np.ndarray, camera: np.ndarray, iterations: int = 30
@@ -358,9 +388,7 @@ class Fitter:
         frame = _inv(st.pose)
         free_local = _transform(frame, free_world)
         _, _, dd = self.residuals(st, _transform(frame, points), free_local, False)
-        df = np.asarray(
-            self.model.value.batch(st.theta, self._p(st.theta), st.q, np.zeros(6), free_local)
-        ).reshape(-1)
+        df = self.distances(st, free_local, False)[0]
         seen = float(np.sum(np.minimum(np.maximum(-df, 0.0), 3 * CAUCHY))) / len(points)
         return replace(self._result(st, dd, done), free=FREE_WEIGHT * seen)
 
@@ -407,6 +435,7 @@ def fit(
     iterations: int = 20,
     seed: int = 0,
     facing: bool = True,
+    labels: np.ndarray | None = None,
 ) -> FitResult:
     """Fit ``concept`` to ``points`` (N, 3): the best of ``starts`` refinements.
 
@@ -414,7 +443,21 @@ def fit(
     camera frame), ``pose_hint`` a 4x4 concept pose to start from (skips the rotation search),
     ``init`` parameter values to start from (a learned estimate: every parameter, or some);
     ``facing`` adds the starts of ``perception.start`` (the front's plane gives the rotation)
-    for points in a level camera's frame."""
+    for points in a level camera's frame. ``labels`` (N,) part names (``perception.labels``)
+    measure each point against its own part (``labelled_fit``)."""
+    if labels is not None:
+        return labelled_fit(
+            concept,
+            points,
+            labels,
+            camera=camera,
+            pose_hint=pose_hint,
+            init=init,
+            init_joints=init_joints,
+            iterations=iterations,
+            seed=seed,
+            facing=facing,
+        )
     base = concept.instantiate().params
     if init:
         base.update(init)
@@ -447,6 +490,77 @@ def fit(
     if short < iterations:  # continue the best screened start
         best = Fitter(concept, best.params, best.joints).run(points, best.pose, cam, iterations)
     return best
+
+
+LABEL_SCREEN = 8  # iterations per stage while screening labelled starts
+LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane, best joints)
+
+
+def labelled_fit(
+    concept: Concept,
+    points: np.ndarray,
+    labels: np.ndarray,
+    *,
+    camera: np.ndarray | None = None,
+    pose_hint: np.ndarray | None = None,
+    init: Mapping[str, Any] | None = None,
+    init_joints: Mapping[str, float] | None = None,
+    iterations: int = 20,
+    seed: int = 0,
+    facing: bool = True,
+) -> FitResult:
+    """The fit with every point measured against its own part's shapes. Its loss pulls each
+    part to its own points from anywhere (first stage nearly least squares), so a few starts
+    suffice: the learned or hinted pose, or one per facing plane with the discrete variants,
+    or one ICP start when no plane faces the camera; each is screened through the stages and
+    the best continued at the narrow scale."""
+    base = concept.instantiate().params
+    if init:
+        base.update(init)
+    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    hint = None if pose_hint is None else np.asarray(pose_hint, float)
+    inst = feasible_instance(concept, base)
+    states = [dict(init_joints)] if init_joints else joint_starts(inst)
+    cands: list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]] = []
+    if hint is not None:
+        cands.append((0.0, hint, base, dict(init_joints or {}) or states[0]))
+    if facing and camera is None and (hint is None or init):
+        planes = plane_starts(concept, points, inst.params, states, camera, seed, draws=0)
+        cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 4]
+    if not cands:
+        rots = None if hint is None else [hint[:3, :3]]
+        cands = global_init(concept, points, base, rots, seed, init_joints)[:2]
+    tried = []
+    for _, pose, params, joints in cands:
+        r = _staged(concept, points, labels, pose, params, joints, cam, LABEL_SCREEN)
+        tried.append(r)
+    best = min(tried, key=_score)
+    fitter = Fitter(concept, best.params, best.joints, CAUCHY, labels)
+    return fitter.run(points, best.pose, cam, iterations)
+
+
+def _staged(
+    concept: Concept,
+    points: np.ndarray,
+    labels: np.ndarray,
+    pose: np.ndarray,
+    params: Mapping[str, Any],
+    joints: Mapping[str, float],
+    cam: np.ndarray,
+    iterations: int,
+) -> FitResult:
+    """One labelled start through the robust scales of ``LABEL_STAGES``, wide to narrow."""
+    result = None
+    for scale in LABEL_STAGES:
+        if result is not None:
+            params, joints, pose = result.params, result.joints, result.pose
+        try:
+            fitter = Fitter(concept, params, joints, scale, labels)
+        except ParameterError:  # a scaled start that breaks a requirement
+            fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels)
+        result = fitter.run(points, pose, cam, iterations)
+    assert result is not None
+    return result
 
 
 def _score(r: FitResult) -> float:

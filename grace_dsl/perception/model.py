@@ -119,8 +119,28 @@ def _min(ds: list[Any]) -> Any:
     return out
 
 
-@lru_cache(maxsize=32)
-def _build(concept: Concept, shapes: tuple[str, ...]) -> SdfModel:
+@dataclass(frozen=True)
+class PartsModel:
+    """The distance to each outermost shape apart, for a fit whose points carry part labels:
+    a point is measured against the shapes of its own part (the min over that group's columns)
+    and free space against all of them (the union). One function for every labelling, so a
+    concept compiles once whatever parts a segmenter names."""
+
+    concept: Concept
+    float_index: tuple[int, ...]
+    n_joints: int
+    shapes: tuple[str, ...]  # the outermost shapes, the columns of the outputs
+    links: tuple[str, ...]  # the link of each shape
+    value: native.Evaluator  # (theta, pfix, q, w, y) -> d (S,)
+    gradient: native.Evaluator  # (theta, pfix, q, w, y) -> (d (S,), dd/d[theta, q, w] (S, n))
+
+    @property
+    def n_vars(self) -> int:
+        return len(self.float_index) + self.n_joints + 6
+
+
+def _symbols(concept: Concept) -> tuple[Any, ...]:
+    """(theta, pfix, q, w, y, p, local): the inputs and the point in the concept frame."""
     index = float_index(concept)
     n_p = len(np.atleast_1d(concept.pack()))
     theta = ca.SX.sym("theta", len(index))
@@ -133,18 +153,62 @@ def _build(concept: Concept, shapes: tuple[str, ...]) -> SdfModel:
     k = _skew(w[:3])
     rot = ca.SX.eye(3) + k + 0.5 * (k @ k)
     local = rot.T @ (y - w[3:])
+    return theta, pfix, q, w, y, p, local
+
+
+def _shape_distances(
+    concept: Concept, shapes: tuple[str, ...], p: Any, q: Any, local: Any
+) -> tuple[list[str], list[str], list[Any]]:
+    """Names, links and distances of the outermost shapes at concept-frame point ``local``."""
     own = primitive_own_shape(concept)
     if own is not None and not concept.entry["shapes"]:
         values = {
             s.name: p[s.offset] if s.size == 1 else p[s.offset : s.offset + s.size]
             for s in concept.params
         }
-        d = primitive_sdf_casadi(concept.name, values, local)
-    else:
-        g = _Graph(concept, shapes, p, q)
-        d = _min(
-            [g.sdf(n, g.motion(g.entries[n]["link"]) @ g.shape(n)[0], local) for n in g.outermost()]
-        )
+        link = concept.links[0] if concept.links else "base"
+        return [own["name"]], [link], [primitive_sdf_casadi(concept.name, values, local)]
+    g = _Graph(concept, shapes, p, q)
+    names = g.outermost()
+    links = [g.entries[n]["link"] for n in names]
+    ds = [g.sdf(n, g.motion(g.entries[n]["link"]) @ g.shape(n)[0], local) for n in names]
+    return names, links, ds
+
+
+@lru_cache(maxsize=32)
+def _build_parts(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
+    theta, pfix, q, w, y, p, local = _symbols(concept)
+    names, links, ds = _shape_distances(concept, shapes, p, q, local)
+    d = ca.vertcat(*ds)
+    x = ca.vertcat(theta, q, w)
+    name = f"fitparts_{concept.name.lower()}_{zlib.crc32('|'.join(shapes).encode()):08x}"
+    fns = {
+        f"{name}_d": ca.Function(f"{name}_d", [theta, pfix, q, w, y], [d]),
+        f"{name}_g": ca.Function(f"{name}_g", [theta, pfix, q, w, y], [d, ca.jacobian(d, x)]),
+    }
+    fast = native.fast_functions(fns)
+    return PartsModel(
+        concept,
+        float_index(concept),
+        len(concept.moving_joints),
+        tuple(names),
+        tuple(links),
+        fast[f"{name}_d"],
+        fast[f"{name}_g"],
+    )
+
+
+def parts_model(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
+    """The per-shape distances of ``concept`` over ``shapes`` (as ``sdf_model``), for the
+    part-labelled fit; built once per concept and shape set."""
+    return _build_parts(concept, tuple(shapes))
+
+
+@lru_cache(maxsize=32)
+def _build(concept: Concept, shapes: tuple[str, ...]) -> SdfModel:
+    index = float_index(concept)
+    theta, pfix, q, w, y, p, local = _symbols(concept)
+    d = _min(_shape_distances(concept, shapes, p, q, local)[2])
     x = ca.vertcat(theta, q, w)
     name = f"fit_{concept.name.lower()}_{zlib.crc32('|'.join(shapes).encode()):08x}"
     value = ca.Function(f"{name}_d", [theta, pfix, q, w, y], [d])

@@ -212,9 +212,11 @@ def plane_starts(
     joint_states: list[dict[str, float]],
     camera: np.ndarray | None = None,
     seed: int = 0,
+    draws: int = DRAWS,
 ) -> list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]]:
     """Starts for the fit, best first, as ``fit.global_init`` gives them: (ICP error, concept
-    pose in the points' frame, parameters, joints); empty when no plane could be a front."""
+    pose in the points' frame, parameters, joints); empty when no plane could be a front.
+    ``draws`` random draws of the scalar lengths follow the discrete variants of the best."""
     planes = facing_planes(points, camera, seed)
     if not planes:
         return []
@@ -247,7 +249,7 @@ def plane_starts(
     if not firsts:
         return []
     err, pose, top, state = firsts[0]
-    others = [(err, pose, v, state) for v in variants(concept, top, rng)]
+    others = [(err, pose, v, state) for v in variants(concept, top, rng, draws)]
     return firsts + others + rest
 
 

@@ -67,6 +67,8 @@ class RenderedView:
     render: DepthRender
     depth: np.ndarray  # the noisy depth the points came from
     instance: Instance
+    # per point of ``sample``, the outermost shape it shows (``handle.bar``): part labels
+    labels: tuple[str, ...] = ()
 
 
 def float_params(concept: Concept) -> tuple[str, ...]:
@@ -169,7 +171,7 @@ def render_view(concept: Concept, seed: int, config: ViewConfig | None = None) -
         shot = render(inst, camera, config.intrinsics, sdf, sphere)
         depth = config.noise.apply(shot.depth, rng)
         mask = shot.mask([config.part] if config.part else None)
-        cloud = back_project(depth, config.intrinsics, mask)
+        cloud = back_project(depth, config.intrinsics, mask)  # row-major, as np.nonzero
         if len(cloud) >= MIN_PIXELS:
             break
     else:
@@ -190,7 +192,17 @@ def render_view(concept: Concept, seed: int, config: ViewConfig | None = None) -
         fixed=fixed,
         part=config.part,
     )
-    return RenderedView(sample, shot, depth, inst)
+    return RenderedView(sample, shot, depth, inst, _point_labels(shot, depth, mask, pick))
+
+
+def _point_labels(
+    shot: DepthRender, depth: np.ndarray, mask: np.ndarray, pick: np.ndarray
+) -> tuple[str, ...]:
+    """The shape each picked point shows, in ``back_project``'s order of the masked pixels."""
+    if shot.shape_labels is None:
+        return ()
+    index = shot.shape_labels[np.nonzero((depth > 0) & mask)][pick]
+    return tuple(shot.shapes[k] if k >= 0 else "" for k in index)
 
 
 def draw_view(concept: Concept, seed: int, config: ViewConfig | None = None) -> ViewSample:
@@ -224,6 +236,30 @@ def generate_views(
         out.append(draw_view(concept, view_seed(concept.name, seed, i), config))
         if progress is not None:
             progress(1)
+    return out
+
+
+def generate_labelled_views(
+    concept: Concept | str,
+    n: int,
+    seed: int = 0,
+    *,
+    points: int = 1024,
+    noise: float = 0.002,
+    start: int = 0,
+) -> list[tuple[ViewSample, tuple[str, ...]]]:
+    """The views ``generate_views`` draws (same seeds, same points), each with its points' part
+    labels: the outermost shape each point shows, as the renderer segments it."""
+    if isinstance(concept, str):
+        from grace_dsl.runtime.library import load_library
+
+        concept = load_library()[concept]
+    config = ViewConfig(points=points, noise=DepthNoise(sigma=noise))
+    check_config(config)
+    out = []
+    for i in range(start, start + n):
+        view = render_view(concept, view_seed(concept.name, seed, i), config)
+        out.append((view.sample, view.labels))
     return out
 
 
