@@ -220,17 +220,29 @@ def object_shot(
     if geoms is not None:
         shape_labels = np.full(geoms.shape, -1, dtype=np.int16)
         prefix = scene.prefixes[index]
+        spelled = _shape_names(scene.instances[index])
         for g in np.unique(geoms[labels >= 0]):
             name = model.geom(int(g)).name
             if not name.startswith(prefix):
                 continue
-            shape = name[len(prefix) :].removesuffix("__collision").replace("__", ".")
+            stem = name[len(prefix) :].removesuffix("__collision")
+            shape = spelled.get(stem, stem.replace("__", "."))
             if shape not in shapes:
                 shapes.append(shape)
             shape_labels[(geoms == g) & (labels >= 0)] = shapes.index(shape)
     camera_pose = frame.camera.pose() @ CV
     return DepthRender(frame.depth, labels, links, camera_pose, intrinsics(frame), shape_labels,
                        tuple(shapes))  # fmt: skip
+
+
+def _shape_names(inst: Instance) -> dict[str, str]:
+    """The concept's outermost shape names by their spelling in the exported model's geom
+    names (``handle@bar.bar`` is ``handle_bar__bar`` there): labels must name the concept's
+    own shapes and parts, which the fit resolves."""
+    from grace_dsl.export.common import xml_name
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    return {xml_name(n): n for n in ShapeTree(inst).outermost()}
 
 
 def intrinsics(frame: Frame) -> Intrinsics:
