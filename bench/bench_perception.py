@@ -15,6 +15,11 @@ part. Estimators:
   2 deg of pose, the true joints): what a good learned start gives it, until weights exist;
 - ``learned`` and ``learned+fit``: with ``--learned MODULE:FUNCTION``, a function
   ``(concept, points) -> Estimate`` (the learned estimator), alone and as the fit's start.
+
+``--labels``: the same views (same instance, camera and noise), every pixel of the object with
+the renderer's label per pixel (the shape it shows), fitted with ``estimate(..., labels=)``:
+``fit`` (its own start), ``learned`` and ``learned+fit`` (labelled) where the concept has
+shipped weights. The unlabelled rows of the same views are in docs/benchmarks.md.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ import grace_dsl as eac  # noqa: E402
 from grace_dsl.perception.estimate import estimate  # noqa: E402
 from grace_dsl.perception.fit import fitted_instance_of  # noqa: E402
 from grace_dsl.perception.types import Estimate, ViewSample  # noqa: E402
-from grace_dsl.perception.views import generate_views  # noqa: E402
+from grace_dsl.perception.views import generate_labelled_views, generate_views  # noqa: E402
+from grace_dsl.perception.weights import shipped_concepts  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULT = ROOT / "bench" / "results" / "perception.json"
@@ -184,6 +190,37 @@ def load_learned(spec: str | None) -> Any:
     return getattr(importlib.import_module(module), name)
 
 
+def run_labelled(
+    concept: eac.Concept, n: int, seed: int, learned: Any, modes: list[str]
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, tuple[ViewSample, Estimate]]]:
+    """The part-labelled rows: every pixel of each view with its shape label."""
+    views = generate_labelled_views(concept, n, seed, noise=0.002, every_pixel=True)
+    if learned is not None and not has_weights(concept.name):
+        modes = [m for m in modes if "learned" not in m]
+    rows: dict[str, list[dict[str, Any]]] = {m: [] for m in modes}
+    example: dict[str, tuple[ViewSample, Estimate]] = {}
+    estimate(concept, views[0][0].points, labels=views[0][1])  # warm-up, not timed
+    for view, labels in views:
+        pts = view.points.astype(float)
+        for mode in modes:
+            t0 = time.perf_counter()
+            if mode == "fit":
+                est = estimate(concept, pts, labels=labels)
+            elif mode == "learned":
+                est = learned(concept, pts)
+            else:
+                est = estimate(concept, pts, labels=labels, init=learned(concept, pts))
+            est = Estimate(**{**est.__dict__, "seconds": time.perf_counter() - t0})
+            rows[mode].append(errors(concept, view, est))
+            example.setdefault(mode, (view, est))
+    return rows, example
+
+
+def has_weights(name: str) -> bool:
+    """Whether the package ships the learned estimator's weights for ``name``."""
+    return name in shipped_concepts()
+
+
 def run_concept(
     concept: eac.Concept, n: int, seed: int, learned: Any, modes: list[str]
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, tuple[ViewSample, Estimate]]]:
@@ -251,6 +288,8 @@ def main() -> int:
     ap.add_argument("--concepts", help="comma-separated (default: 5 handles, 5 objects)")
     ap.add_argument("--smoke", action="store_true", help="1 concept, 1 view, no plots")
     ap.add_argument("--small", action="store_true", help="2 views per concept")
+    ap.add_argument("--labels", action="store_true", help="the part-labelled fit")
+    ap.add_argument("--log", type=Path, help="append each concept's summary as it finishes")
     args = ap.parse_args()
     lib = eac.load_library()
     names = args.concepts.split(",") if args.concepts else HANDLES + OBJECTS
@@ -261,17 +300,23 @@ def main() -> int:
         n = 2
     learned = load_learned(args.learned)
     modes = ["fit", "near+fit"] + (["learned", "learned+fit"] if learned else [])
+    if args.labels:
+        modes = ["fit"] + (["learned", "learned+fit"] if learned else [])
     start = time.perf_counter()
     table: dict[str, dict[str, Any]] = {}
     lengths: dict[str, list[float]] = {m: [] for m in modes}
     seen: dict[str, list[float]] = {m: [] for m in modes}
     example: tuple[str, dict[str, tuple[ViewSample, Estimate]]] | None = None
     for name in names:
-        rows, ex = run_concept(lib[name], n, args.seed, learned, modes)
+        run = run_labelled if args.labels else run_concept
+        rows, ex = run(lib[name], n, args.seed, learned, modes)
         table[name] = {m: summary(r) for m, r in rows.items()}
         for m, r in rows.items():
             lengths[m] += [x for row in r for x in row["lengths_mm"]]
             seen[m] += [x for row in r for x in row["seen_lengths_mm"]]
+        if args.log:
+            with args.log.open("a") as fh:
+                fh.write(json.dumps({"concept": name, "summary": table[name]}) + "\n")
         if example is None or name == EXAMPLE:
             example = (name, ex)
         cells = "  ".join(
@@ -299,7 +344,7 @@ def main() -> int:
         "views_per_concept": n,
         "seed": args.seed,
         "noise_sigma_m": 0.002,
-        "points": 1024,
+        "points": "every pixel, labelled" if args.labels else 1024,
         "modes": modes,
         "targets": TARGETS,
         "concepts": table,
@@ -318,6 +363,7 @@ def main() -> int:
     print(f"within 5 mm (the lengths each view constrains): {result['within_5mm_seen']}")
     if not args.smoke:
         tag = "perception_learned_errors" if learned else "perception_errors"
+        tag = "perception_labelled_errors" if args.labels else tag
         histogram_png(lengths, IMAGES / f"{tag}.png")
         if example:
             from grace_dsl.perception.picture import fit_picture
@@ -325,7 +371,7 @@ def main() -> int:
             name, shots = example
             for mode, (view, est) in shots.items():
                 inst = fitted_instance_of(lib[name], est)
-                tag = mode.replace("+", "_")
+                tag = ("labelled_" if args.labels else "") + mode.replace("+", "_")
                 fit_picture(inst, view.points, IMAGES / f"perception_{tag}.png", size=360)
     return 0
 

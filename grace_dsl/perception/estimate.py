@@ -24,6 +24,8 @@ from grace_dsl.runtime.library import Concept
 
 MIN_POINTS = 32
 MAX_POINTS = 768  # the fit's cost grows with the points; more add little at 2 mm noise
+# a labelled cloud is kept up to this: its free space is read from the full outline
+MAX_LABELLED = 20000
 NOISE_FLOOR = 0.0025  # m: a residual below this is what a 2 mm sensor gives on the right model
 FULL_COVER = 128  # points: fewer lower the confidence in proportion
 
@@ -51,11 +53,14 @@ def check_cloud(points: Any) -> np.ndarray:
     return pts
 
 
-def confidence(residual: float, inliers: float, n_points: int) -> float:
+def confidence(residual: float, inliers: float, n_points: int, parts: float = 1.0) -> float:
     """In [0, 1]: falls with the residual beyond the sensor's noise, with the share of points
-    off the surface, and with few points."""
+    off the surface, with few points, and (labelled fits) with the share of the worst part's
+    points off that part's own shapes: a fit that lays a box's front on its back, or a handle
+    beside its points, is wrong however well the union of shapes fits the cloud."""
     fit_term = math.exp(-max(0.0, residual - NOISE_FLOOR) / NOISE_FLOOR)
-    return float(np.clip(inliers**2 * fit_term * min(1.0, n_points / FULL_COVER), 0.0, 1.0))
+    cover = min(1.0, n_points / FULL_COVER)
+    return float(np.clip(inliers**2 * parts**2 * fit_term * cover, 0.0, 1.0))
 
 
 def estimate(
@@ -87,13 +92,11 @@ def estimate(
         concept = load_library()[concept]
     pts = check_cloud(points)
     parts = None if labels is None else check_labels(labels, len(pts))
-    if len(pts) > MAX_POINTS:
-        rng = np.random.default_rng(seed)
-        if parts is None:
-            pts = pts[rng.choice(len(pts), MAX_POINTS, replace=False)]
-        else:
-            keep = subsample(parts, MAX_POINTS, rng)
-            pts, parts = pts[keep], parts[keep]
+    if len(pts) > MAX_POINTS and parts is None:
+        pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
+    elif len(pts) > MAX_LABELLED:  # the labelled fit subsamples per part itself
+        keep = subsample(parts, MAX_LABELLED, np.random.default_rng(seed))
+        pts, parts = pts[keep], parts[keep]
     params, joints, source = None, None, "fit"
     if isinstance(init, Estimate):
         params = join_params(concept, init.params, dict(init.discrete))
@@ -124,7 +127,7 @@ def estimate(
         pose=result.pose,
         joints=result.joints,
         residual=result.residual,
-        confidence=confidence(result.residual, result.inliers, len(pts)),
+        confidence=confidence(result.residual, result.inliers, len(pts), result.part_inliers),
         seconds=time.perf_counter() - start,
         source=source,
         discrete=discrete,

@@ -26,8 +26,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from grace_dsl.perception.camera import look_at
-from grace_dsl.perception.labels import label_masks
-from grace_dsl.perception.model import PartsModel, SdfModel, parts_model, sdf_model
+from grace_dsl.perception.labels import covered, label_masks, subsample
+from grace_dsl.perception.model import (
+    PartsModel,
+    SdfModel,
+    float_index,
+    parts_model,
+    sdf_model,
+)
 from grace_dsl.perception.start import feasible_instance, plane_starts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
@@ -42,6 +48,9 @@ FREE_STEPS = tuple(np.geomspace(0.006, 0.12, 6).tolist())
 FRONT_RAYS = 128
 FREE_WEIGHT = 0.5
 PRIOR_WEIGHT = 0.02  # per parameter, in units of its range
+# with labels: a whole range's move costs what a 1 mm mean residual does, so the points move a
+# part's parameters (0.02 outweighed a handle's 6 mm misfit) and only unseen ones stay put
+LABEL_PRIOR = 0.001
 SILHOUETTE = 4.0  # spacings: a ray farther than this from every observed ray saw nothing
 FREE_RAYS = 200
 FREE_DEPTHS = 12
@@ -54,7 +63,7 @@ LEARNED_PLANES = 2  # of them screened against a learned start's pose
 # m: with part labels a point's own part is where it belongs, so the first stage is nearly
 # least squares: a handle 300 mm from its points still pulls (a 30 mm Cauchy scale would not)
 LABEL_CAUCHY = 0.3
-LABEL_STAGES = (LABEL_CAUCHY, WIDE_CAUCHY, CAUCHY)
+MIN_PART = 8  # points: a labelled part with fewer does not count in ``part_inliers``
 
 
 @dataclass(frozen=True)
@@ -69,6 +78,9 @@ class FitResult:
     inliers: float  # share of points within 3 CAUCHY of the surface
     iterations: int
     free: float = 0.0  # m: surface where the camera saw through, per observed point (robust)
+    # with labels: the smallest share, over the labelled parts, of a part's points within
+    # 3 CAUCHY of that part's own shapes (a fit turned 180 deg leaves the front's points off)
+    part_inliers: float = 1.0
 
 
 def rotation_exp(w: np.ndarray) -> np.ndarray:
@@ -199,12 +211,23 @@ def global_init(
 # -- free space ------------------------------------------------------------------------------
 
 
-def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndarray:
+def free_space(
+    points: np.ndarray,
+    camera: np.ndarray,
+    seed: int = 0,
+    margin: float = 0.3,
+    grid: int = 50,
+    silhouette: float = SILHOUETTE,
+    n_rays: int = FREE_RAYS,
+) -> np.ndarray:
     """Points the camera saw through, where the fitted surface must not be: a little in front
     of every observed point, and along the rays just outside the cloud's outline (rays that met
     nothing within the cloud's depth range: the silhouette). The outline is read off the rays'
     gnomonic projection, which needs no intrinsics: a ray is free when no observed ray lies
-    within ``SILHOUETTE`` times their typical spacing."""
+    within ``SILHOUETTE`` times their typical spacing. The outline's rays are drawn within
+    ``margin`` times the cloud's extent of it, on a grid of ``grid`` steps across the extent
+    (finer: the seen-through band starts nearer the outline, which a dense cloud allows, as
+    does a ``silhouette`` of fewer spacings), ``n_rays`` of them."""
     rays = points - camera
     dist = np.linalg.norm(rays, axis=1)
     unit = rays / np.maximum(dist, 1e-9)[:, None]
@@ -227,14 +250,14 @@ def free_space(points: np.ndarray, camera: np.ndarray, seed: int = 0) -> np.ndar
     tree = cKDTree(a)
     spacing = float(np.median(tree.query(a, k=2)[0][:, 1]))
     lo, hi = a.min(axis=0), a.max(axis=0)
-    margin = 0.3 * (hi - lo) + 4 * spacing
-    step = max(spacing, float((hi - lo).max()) / 50)
+    margin = margin * (hi - lo) + 4 * spacing
+    step = max(spacing, float((hi - lo).max()) / grid)
     gu = np.arange(lo[0] - margin[0], hi[0] + margin[0], step)
     gv = np.arange(lo[1] - margin[1], hi[1] + margin[1], step)
     grid = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
-    free = grid[tree.query(grid)[0] > SILHOUETTE * max(spacing, step / 2)]
-    if len(free) > FREE_RAYS:
-        free = free[rng.choice(len(free), FREE_RAYS, replace=False)]
+    free = grid[tree.query(grid)[0] > silhouette * max(spacing, step / 2)]
+    if len(free) > n_rays:
+        free = free[rng.choice(len(free), n_rays, replace=False)]
     dirs = c + free[:, :1] * e1 + free[:, 1:] * e2
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
@@ -264,17 +287,25 @@ class Fitter:
         joints: Mapping[str, float],
         cauchy: float = CAUCHY,
         labels: np.ndarray | None = None,
+        strict: bool = True,
     ):
         """``labels`` (N,) part names of the points ``run`` will get (``perception.labels``):
-        each point is then measured against its own part's shapes."""
-        self.concept, self.cauchy = concept, cauchy
+        each point is then measured against its own part's shapes. ``strict``: refuse steps
+        that break a requirement, and start from ``params`` made feasible; otherwise start
+        from ``params`` as they are and let the iterates cross requirements."""
+        self.concept, self.cauchy, self.strict = concept, cauchy, strict
+        self.prior = PRIOR_WEIGHT if labels is None else LABEL_PRIOR
         inst = feasible_instance(concept, params)
         if joints:
             inst = inst.with_joints(dict(joints))
         self.pfix = inst.p.copy()
+        if not strict:
+            idx = list(float_index(concept))
+            self.pfix[idx] = concept.pack(dict(params))[idx]
         shapes = tuple(ShapeTree(inst).shapes)
         self.model: SdfModel | PartsModel
         self.masks: np.ndarray | None = None
+        self.labels = labels
         if labels is None:
             self.model = sdf_model(concept, shapes)
         else:
@@ -288,7 +319,7 @@ class Fitter:
                 hi += list(np.atleast_1d(s.hi))
         self.lo, self.hi = np.array(lo, float), np.array(hi, float)
         self.span = np.maximum(self.hi - self.lo, 1e-6)
-        self.theta0 = inst.p[idx].copy()
+        self.theta0 = self.pfix[idx].copy()
         self.q0 = inst.q.copy()
         self.present = [concept.joint_index[n] for n in inst.joints]
 
@@ -318,12 +349,12 @@ class Fitter:
         wd = 1.0 / np.sqrt(1.0 + (dd / self.cauchy) ** 2)
         wf = FREE_WEIGHT * (df < 0)
         scale = 1.0 / math.sqrt(n)
-        prior = PRIOR_WEIGHT * (st.theta - self.theta0) / self.span
+        prior = self.prior * (st.theta - self.theta0) / self.span
         r = np.concatenate([scale * wd * dd, scale * wf * df, prior])
         jac = None
         if g is not None:
             jp = np.zeros((len(prior), g.shape[1]))
-            jp[:, : len(prior)] = np.diag(PRIOR_WEIGHT / self.span)
+            jp[:, : len(prior)] = np.diag(self.prior / self.span)
             jac = np.concatenate([scale * wd[:, None] * g[:n], scale * wf[:, None] * g[n:], jp])
         return r, jac, dd
 
@@ -350,11 +381,17 @@ class Fitter:
         return d[rows, k], g[rows, k]
 
     def run(
-        self, points: np.ndarray, pose: np.ndarray, camera: np.ndarray, iterations: int = 30
+        self,
+        points: np.ndarray,
+        pose: np.ndarray,
+        camera: np.ndarray,
+        iterations: int = 30,
+        free: np.ndarray | None = None,
     ) -> FitResult:
-        """Refine from ``pose`` (concept in the points' frame) and the starting parameters."""
+        """Refine from ``pose`` (concept in the points' frame) and the starting parameters;
+        ``free`` the free-space points (``free_space``: computed here when None)."""
         st = _State(self.theta0.copy(), self.q0.copy(), pose.copy())
-        free_world = free_space(points, camera)
+        free_world = free_space(points, camera) if free is None else free
         mu, nt, nq = 1e-3, len(st.theta), len(st.q)
         frame = _inv(st.pose)
         r, jac, dd = self.residuals(
@@ -369,7 +406,11 @@ class Fitter:
             diag = np.maximum(np.diag(jtj), 1e-12)
             for _ in range(8):
                 step = -np.linalg.solve(jtj + mu * np.diag(diag), jtr)
+                if self.masks is not None:
+                    step = self._bounded(st, step, jtj + mu * np.diag(diag), jtr)
                 trial = self._step(st, step, nt, nq)
+                if trial is None and self.masks is not None:
+                    trial = self._shortened(st, step, nt, nq)
                 if trial is not None:
                     frame = _inv(trial.pose)
                     y, f = _transform(frame, points), _transform(frame, free_world)
@@ -390,11 +431,26 @@ class Fitter:
         _, _, dd = self.residuals(st, _transform(frame, points), free_local, False)
         df = self.distances(st, free_local, False)[0]
         seen = float(np.sum(np.minimum(np.maximum(-df, 0.0), 3 * CAUCHY))) / len(points)
-        return replace(self._result(st, dd, done), free=FREE_WEIGHT * seen)
+        return replace(
+            self._result(st, dd, done), free=FREE_WEIGHT * seen, part_inliers=self._parts(dd)
+        )
+
+    def _parts(self, dd: np.ndarray) -> float:
+        """The worst labelled part's share of points on its own shapes (1 without labels);
+        parts with fewer than ``MIN_PART`` points do not count."""
+        if self.labels is None:
+            return 1.0
+        near = np.abs(dd) < 3 * CAUCHY
+        shares = [
+            float(near[self.labels == n].mean())
+            for n in np.unique(self.labels)
+            if (self.labels == n).sum() >= MIN_PART
+        ]
+        return min(shares, default=1.0)
 
     def _step(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
         theta = np.clip(st.theta + step[:nt], self.lo, self.hi)
-        if not self.feasible(theta):
+        if self.strict and not self.feasible(theta):
             return None
         q = st.q.copy()
         if nq:
@@ -404,6 +460,36 @@ class Fitter:
         delta = np.eye(4)
         delta[:3, :3], delta[:3, 3] = rotation_exp(w[:3]), w[3:]
         return _State(theta, q, st.pose @ delta)
+
+    def _bounded(
+        self, st: _State, step: np.ndarray, system: np.ndarray, rhs: np.ndarray
+    ) -> np.ndarray:
+        """The step solved again with the parameters it would push past their range held
+        (an active set): clipping them afterwards turns the step into one that need not
+        descend, and the fit then stalls with a thickness at its bound."""
+        nt = len(st.theta)
+        held = np.zeros(len(step), bool)
+        held[:nt] = ((st.theta <= self.lo + 1e-9) & (step[:nt] < 0)) | (
+            (st.theta >= self.hi - 1e-9) & (step[:nt] > 0)
+        )
+        if not held.any():
+            return step
+        a, b = system.copy(), rhs.copy()
+        a[held, :], a[:, held], b[held] = 0.0, 0.0, 0.0
+        a[held, held] = 1.0
+        return -np.linalg.solve(a, b)
+
+    def _shortened(self, st: _State, step: np.ndarray, nt: int, nq: int) -> _State | None:
+        """A step whose parameters break a requirement, with its parameter part shortened
+        until they hold (pose and joints move in full): the labelled fit's parameters travel
+        far and would otherwise stop at the first requirement they meet."""
+        for t in (0.5, 0.25, 0.1, 0.0):
+            short = step.copy()
+            short[:nt] *= t
+            trial = self._step(st, short, nt, nq)
+            if trial is not None:
+                return trial
+        return None
 
     def _result(self, st: _State, dd: np.ndarray, iterations: int) -> FitResult:
         p = self._p(st.theta)
@@ -492,8 +578,11 @@ def fit(
     return best
 
 
-LABEL_SCREEN = 8  # iterations per stage while screening labelled starts
-LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane, best joints)
+LABEL_SCREEN = 5  # near-least-squares iterations per labelled start before the best is kept
+LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane)
+LABEL_POINTS = 384  # the labelled fit's points (every part keeps a share: ``subsample``)
+LABEL_FREE = 768  # and free-space points
+LABEL_MARGIN = 0.1  # of the extent: the band outside the outline the free rays are drawn in
 
 
 def labelled_fit(
@@ -510,57 +599,111 @@ def labelled_fit(
     facing: bool = True,
 ) -> FitResult:
     """The fit with every point measured against its own part's shapes. Its loss pulls each
-    part to its own points from anywhere (first stage nearly least squares), so a few starts
-    suffice: the learned or hinted pose, or one per facing plane with the discrete variants,
-    or one ICP start when no plane faces the camera; each is screened through the stages and
-    the best continued at the narrow scale."""
+    part to its own points from anywhere (the first stage is nearly least squares), so few
+    starts are needed and the joints come from the labelled links: the learned or hinted pose,
+    one start per facing plane and the discrete variants of the best, or one ICP start when no
+    plane faces the camera. Each is screened by ``LABEL_SCREEN`` iterations of the first stage,
+    the best goes on through the narrower scales."""
+    rng = np.random.default_rng(seed)
+    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    # the outline from every point: a subsample's wider spacing would start the seen-through
+    # space centimetres outside it (4 spacings), where a too tall cabinet is not caught
+    free = free_space(points, cam, seed, LABEL_MARGIN)
+    keep = subsample(labels, LABEL_POINTS, rng)
+    points, labels = points[keep], labels[keep]
     base = concept.instantiate().params
     if init:
         base.update(init)
-    cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    base = labelled_variant(concept, base, labels)
     hint = None if pose_hint is None else np.asarray(pose_hint, float)
+    if len(free) > LABEL_FREE:
+        free = free[rng.choice(len(free), LABEL_FREE, replace=False)]
     inst = feasible_instance(concept, base)
-    states = [dict(init_joints)] if init_joints else joint_starts(inst)
+    states = [dict(init_joints)] if init_joints else joint_starts(inst)[:1]
     cands: list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]] = []
     if hint is not None:
-        cands.append((0.0, hint, base, dict(init_joints or {}) or states[0]))
-    if facing and camera is None and (hint is None or init):
+        cands.append((0.0, hint, base, states[0]))
+    if facing and camera is None:  # a hint is screened against the facing planes too
         planes = plane_starts(concept, points, inst.params, states, camera, seed, draws=0)
-        cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 4]
+        cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 2]
     if not cands:
         rots = None if hint is None else [hint[:3, :3]]
         cands = global_init(concept, points, base, rots, seed, init_joints)[:2]
     tried = []
     for _, pose, params, joints in cands:
-        r = _staged(concept, points, labels, pose, params, joints, cam, LABEL_SCREEN)
-        tried.append(r)
+        if not _resolves(concept, params, [str(n) for n in np.unique(labels)]):
+            continue  # a variant without the labelled parts (another handle kind)
+        tried.append(_stage(concept, points, labels, free, pose, params, joints, LABEL_CAUCHY))
+    if not tried:  # every start lost a labelled part: start from the labels' own variant
+        tried.append(_stage(concept, points, labels, free, cands[0][1], base, states[0], 0.3))
     best = min(tried, key=_score)
-    fitter = Fitter(concept, best.params, best.joints, CAUCHY, labels)
-    return fitter.run(points, best.pose, cam, iterations)
+    for scale, steps in ((LABEL_CAUCHY, 15), (WIDE_CAUCHY, LABEL_SCREEN)):
+        best = _stage(
+            concept, points, labels, free, best.pose, best.params, best.joints, scale, steps
+        )
+    # the last stage keeps the requirements (a real instance meets them), from the nearest
+    # start that meets them: the earlier stages may cross them on the way (a height and a
+    # handle's place move together), which a strict fit's refused steps could not
+    params = dict(feasible_instance(concept, best.params).params)
+    return _stage(
+        concept, points, labels, free, best.pose, params, best.joints, CAUCHY, iterations, True
+    )
 
 
-def _staged(
+def _resolves(concept: Concept, params: Mapping[str, Any], names: list[str]) -> bool:
+    """Whether every label names shapes of the instance at ``params``."""
+    inst = feasible_instance(concept, params)
+    tree = ShapeTree(inst)
+    shapes = tree.outermost()
+    links = [tree.shapes[n]["link"] for n in shapes]
+    return all(covered(n, shapes, links).any() for n in names)
+
+
+def labelled_variant(
+    concept: Concept, params: Mapping[str, Any], labels: np.ndarray
+) -> dict[str, Any]:
+    """``params`` with the discrete values the labels call for: a label that names a part
+    only another variant has (``handle@curved.bar`` when the start has a bar handle) picks
+    that variant, which the fit cannot change. Unresolvable labels raise ``LabelError``."""
+    names = [str(n) for n in np.unique(labels)]
+    if _resolves(concept, params, names):
+        return dict(params)
+    for s in concept.params:
+        values = list(s.choices or ()) if s.kind == "choice" else [True, False]
+        if s.kind not in ("choice", "bool"):
+            continue
+        for v in values:
+            other = dict(params) | {s.name: v}
+            try:
+                if _resolves(concept, other, names):
+                    return dict(feasible_instance(concept, other).params)
+            except ParameterError:
+                continue
+    inst = feasible_instance(concept, params)
+    tree = ShapeTree(inst)
+    shapes = tree.outermost()
+    label_masks(labels, shapes, [tree.shapes[n]["link"] for n in shapes], concept.name)
+    return dict(params)  # not reached: label_masks raised
+
+
+def _stage(
     concept: Concept,
     points: np.ndarray,
     labels: np.ndarray,
+    free: np.ndarray,
     pose: np.ndarray,
     params: Mapping[str, Any],
     joints: Mapping[str, float],
-    cam: np.ndarray,
-    iterations: int,
+    scale: float,
+    iterations: int = LABEL_SCREEN,
+    strict: bool = False,
 ) -> FitResult:
-    """One labelled start through the robust scales of ``LABEL_STAGES``, wide to narrow."""
-    result = None
-    for scale in LABEL_STAGES:
-        if result is not None:
-            params, joints, pose = result.params, result.joints, result.pose
-        try:
-            fitter = Fitter(concept, params, joints, scale, labels)
-        except ParameterError:  # a scaled start that breaks a requirement
-            fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels)
-        result = fitter.run(points, pose, cam, iterations)
-    assert result is not None
-    return result
+    """A labelled fit at one robust scale from one start (``strict``: see ``Fitter``)."""
+    try:
+        fitter = Fitter(concept, params, joints, scale, labels, strict)
+    except ParameterError:  # a scaled start that breaks a requirement
+        fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels, strict)
+    return fitter.run(points, pose, np.zeros(3), iterations, free)
 
 
 def _score(r: FitResult) -> float:

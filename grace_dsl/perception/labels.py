@@ -116,14 +116,14 @@ def labelled_points(clouds: Mapping[str, Any]) -> tuple[np.ndarray, list[str]]:
 
 def subsample(labels: np.ndarray, limit: int, rng: np.random.Generator) -> np.ndarray:
     """Indices of at most ``limit`` points that keep every label's points in proportion, but
-    at least ``min(count, limit // (4 * labels))`` of each: a handle's few points survive a
+    at least ``min(count, limit // (2 * labels))`` of each: a handle's few points survive a
     cabinet's many."""
     names, inverse = np.unique(labels, return_inverse=True)
     inverse = inverse.reshape(-1)
     if len(labels) <= limit:
         return np.arange(len(labels))
     counts = np.bincount(inverse, minlength=len(names))
-    floor = np.minimum(counts, limit // (4 * len(names)))
+    floor = np.minimum(counts, limit // (2 * len(names)))
     rest = limit - int(floor.sum())
     extra = counts - floor
     share = np.floor(rest * extra / max(int(extra.sum()), 1)).astype(int)

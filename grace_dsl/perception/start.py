@@ -105,7 +105,9 @@ def _ransac(
     best = int(np.argmax(counts))
     on = dist[best] < PLANE_TOLERANCE
     centre = pts[on].mean(axis=0)
-    normal = np.linalg.svd(pts[on] - centre)[2][-1]  # least squares over the inliers
+    normal = np.linalg.svd(pts[on] - centre, full_matrices=False)[2][
+        -1
+    ]  # least squares over the inliers
     on = np.abs((pts - centre) @ normal) < PLANE_TOLERANCE
     return normal, centre, on
 

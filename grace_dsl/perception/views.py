@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -247,9 +247,13 @@ def generate_labelled_views(
     points: int = 1024,
     noise: float = 0.002,
     start: int = 0,
+    every_pixel: bool = False,
 ) -> list[tuple[ViewSample, tuple[str, ...]]]:
     """The views ``generate_views`` draws (same seeds, same points), each with its points' part
-    labels: the outermost shape each point shows, as the renderer segments it."""
+    labels: the outermost shape each point shows, as the renderer segments it. With
+    ``every_pixel`` the sample's points are every pixel of the view instead of the resample
+    (same instance, camera and noise): what a segmenter hands on at the camera's resolution,
+    where a cabinet's handle has tens of pixels rather than the few of a 1024-point resample."""
     if isinstance(concept, str):
         from grace_dsl.runtime.library import load_library
 
@@ -259,7 +263,13 @@ def generate_labelled_views(
     out = []
     for i in range(start, start + n):
         view = render_view(concept, view_seed(concept.name, seed, i), config)
-        out.append((view.sample, view.labels))
+        if every_pixel:
+            mask = view.render.mask()
+            every = back_project(view.depth, config.intrinsics, mask)
+            labels = _point_labels(view.render, view.depth, mask, np.arange(len(every)))
+            out.append((replace(view.sample, points=every.astype(np.float32)), labels))
+        else:
+            out.append((view.sample, view.labels))
     return out
 
 
