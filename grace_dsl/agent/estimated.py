@@ -60,6 +60,7 @@ MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look
 PART_SHARE = 0.35
 LOOKS = 3  # at most this many looks per episode: the protocol's and two the agent chooses
 SAME_VIEW = 20.0  # degrees: a view this near one already taken would show nothing new
+LOW_ELEVATION = 20.0  # degrees: where a look goes when no look has shown the handle from above
 
 
 class EstimateRefused(PerceptionError):
@@ -92,13 +93,14 @@ class View:
 class Sight:
     """What a look showed in the world frame, for choosing the next view: where the pixels of
     the part to hold were (the handle's, else the moved link's: their centroid, None if none
-    were seen) and where the estimated front points (the fitted concept's +z, None when no fit
-    ran)."""
+    were seen), where the estimated front points (the fitted concept's +z, None when no fit
+    ran) and how many of the handle's pixels it saw."""
 
     view: View
     centre: tuple[float, float, float]  # where the camera was aimed
-    handle_at: tuple[float, float, float] | None = None
+    handle_at: tuple[float, float, float] | None = None  # the handle's, else the held link's
     front: tuple[float, float, float] | None = None
+    handle: int = -1  # the handle's pixels seen (-1: the concept has none)
 
 
 @dataclass(frozen=True)
@@ -481,8 +483,9 @@ def look(
     wanted = any(p.split("@")[0] == PART for p in _parts(concept))
     seen = cloud.count(PART) if wanted else -1
     held = cloud.owned_by(hold) if hold else np.zeros(len(cloud), bool)
-    at = cloud.on(PART) if wanted else held
-    sight = Sight(view, tuple(float(v) for v in target), _centroid(cloud, at, shot.camera_pose))
+    at = cloud.on(PART) if seen > 0 else held
+    centre = (float(target[0]), float(target[1]), float(target[2]))
+    sight = Sight(view, centre, _centroid(cloud, at, shot.camera_pose), handle=seen)
     for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
         if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
             raise EstimateRefused(
@@ -531,8 +534,12 @@ def next_view(first: View, sights: Sequence[Sight]) -> View:
     their centroid: a handle sits on the front), else toward the face the estimated front
     points at, else from the opposite side of the last view (from behind, nothing of the front
     was seen). A direction within ``SAME_VIEW`` degrees of a view already taken is turned by
-    45, then 90 degrees either way instead, so no look repeats. A function of the sights."""
+    45, then 90 degrees either way instead, so no look repeats. The elevation is the first
+    look's, or ``LOW_ELEVATION`` while no look has shown any of a handle (an oven's open door
+    hides its handle from above). A function of the sights."""
     taken = [s.view.azimuth for s in sights]
+    hidden = bool(sights) and all(s.handle == 0 for s in sights)
+    elevation = min(first.elevation, LOW_ELEVATION) if hidden else first.elevation
     azimuth = None
     for s in reversed(sights):
         toward = _toward(s.centre, s.handle_at)
@@ -546,8 +553,8 @@ def next_view(first: View, sights: Sequence[Sight]) -> View:
     for turn in (0.0, 45.0, -45.0, 90.0, -90.0, 180.0):
         cand = (azimuth + turn) % 360.0
         if all(_apart(cand, t) >= SAME_VIEW for t in taken):
-            return View(round(cand, 6), first.elevation)
-    return View((azimuth + 180.0) % 360.0, first.elevation)
+            return View(round(cand, 6), elevation)
+    return View((azimuth + 180.0) % 360.0, elevation)
 
 
 def _toward(

@@ -99,3 +99,18 @@ def test_the_next_view_faces_where_the_handle_was_seen() -> None:
     assert all(abs((got.azimuth - t + 180) % 360 - 180) >= SAME_VIEW for t in (170.0, 10.0))
     assert got.azimuth == 45.0  # turned 45 degrees from the handle's direction (0)
     assert next_view(first, [back, near]) == got  # a function of the sights
+
+
+@pytest.mark.slow  # renders, fits and runs the hand (about 10 s)
+def test_a_drawer_seen_from_the_front_is_opened_on_its_estimate() -> None:
+    """CabinetDrawer, open, seed 3: the protocol's camera sees the front (azimuth 354 deg,
+    the front faces +x). With the handle's points labelled the fit places the handle and the
+    hand opens the drawer past half its travel, on the estimate alone."""
+    from grace_dsl.agent.estimated_episode import run_estimated_episode
+    from grace_dsl.sim.records import EpisodeConfig
+
+    record = run_estimated_episode(EpisodeConfig("CabinetDrawer", "open", mode="estimated"), 3)
+    (only,) = record.estimate["looks"]  # the first look was accepted
+    assert only["handle_points"] > 100 and only["confidence"] >= 0.5
+    assert not record.estimate["refused"] and record.estimate["pose_error_mm"] < 25
+    assert record.strict, (record.reason, record.detail)
