@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--single-view", action="store_true", help="refuse instead of looking again")
     ap.add_argument("--looks", type=int, default=None, help="at most this many looks (default 3)")
-    ap.add_argument("--min-confidence", type=float, default=None, help="refuse below (0.5)")
+    ap.add_argument("--min-confidence", type=float, default=None, help="refuse below (0.7)")
     ap.add_argument("--small", action="store_true", help="3 categories, 2 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
     ap.add_argument("--log", type=Path, default=None, help="JSON lines, appended and resumed")
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_pair(
-    category: str, task: str, seed: int, looks: int = 3, min_confidence: float = 0.5
+    category: str, task: str, seed: int, looks: int = 3, min_confidence: float = 0.7
 ) -> dict[str, Any]:
     """The oracle and the estimated episode of one (category, task, seed)."""
     from grace_dsl.agent.estimated_episode import estimated_episode

@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
     from grace_dsl.sim.multi import MultiWorld
 
-MIN_CONFIDENCE = 0.5  # below this an estimate is refused, never acted on
+MIN_CONFIDENCE = 0.7  # below this an estimate is refused, never acted on (measured)
 NOISE = 0.002  # m: the depth sensor's Gaussian sigma
 #: OpenCV camera axes (x right, y down, z forward) from MuJoCo's (x right, y up, z backward)
 CV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -91,14 +91,14 @@ class View:
 
 @dataclass(frozen=True)
 class Sight:
-    """What a look showed in the world frame, for choosing the next view: where the pixels of
-    the part to hold were (the handle's, else the moved link's: their centroid, None if none
-    were seen), where the estimated front points (the fitted concept's +z, None when no fit
-    ran) and how many of the handle's pixels it saw."""
+    """What a look showed in the world frame, for choosing the next view: where the handle's
+    pixels were (their centroid, None if none were seen), where the estimated front points
+    (the fitted concept's +z, None when no fit ran) and how many of the handle's pixels it
+    saw (-1: the concept has no handle)."""
 
     view: View
     centre: tuple[float, float, float]  # where the camera was aimed
-    handle_at: tuple[float, float, float] | None = None  # the handle's, else the held link's
+    handle_at: tuple[float, float, float] | None = None
     front: tuple[float, float, float] | None = None
     handle: int = -1  # the handle's pixels seen (-1: the concept has none)
 
@@ -483,16 +483,20 @@ def look(
     wanted = any(p.split("@")[0] == PART for p in _parts(concept))
     seen = cloud.count(PART) if wanted else -1
     held = cloud.owned_by(hold) if hold else np.zeros(len(cloud), bool)
-    at = cloud.on(PART) if seen > 0 else held
     centre = (float(target[0]), float(target[1]), float(target[2]))
-    sight = Sight(view, centre, _centroid(cloud, at, shot.camera_pose), handle=seen)
+    handle_at = _centroid(cloud, cloud.on(PART), shot.camera_pose) if seen > 0 else None
+    sight = Sight(view, centre, handle_at, handle=seen)
     for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
         if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
-            raise EstimateRefused(
+            why = (
                 f"{concept.name} from view {_view(view)}: {n} pixels of its {name} are in view "
-                f"(at least {MIN_PART_POINTS} needed); take another view",
-                sight=sight,
+                f"(at least {MIN_PART_POINTS} needed); take another view"
             )
+            try:  # never acted on: only where its front points, to choose the next view
+                guess = perceive(concept, cloud, shot.camera_pose, view, seed, 0.0, fixed, seen)
+            except EstimateRefused:
+                raise EstimateRefused(why, sight=sight) from None
+            raise EstimateRefused(why, _seen(guess, sight))
     try:
         got = perceive(concept, cloud, shot.camera_pose, view, seed, min_confidence, fixed, seen)
     except EstimateRefused as exc:
@@ -528,33 +532,36 @@ def _centroid(
 
 
 def next_view(first: View, sights: Sequence[Sight]) -> View:
-    """Where to look after the refused ``sights`` (a robot walking round the object; the same
-    elevation as the first look). In order of what the looks showed: toward the face where the
-    pixels of the part to hold were seen (the horizontal direction from the aimed-at centre to
-    their centroid: a handle sits on the front), else toward the face the estimated front
-    points at, else from the opposite side of the last view (from behind, nothing of the front
-    was seen). A direction within ``SAME_VIEW`` degrees of a view already taken is turned by
-    45, then 90 degrees either way instead, so no look repeats. The elevation is the first
-    look's, or ``LOW_ELEVATION`` while no look has shown any of a handle (an oven's open door
-    hides its handle from above). A function of the sights."""
+    """Where to look after the refused ``sights`` (a robot walking round the object). The
+    candidate directions, newest sight first: toward the face where the handle's pixels were
+    seen (the horizontal direction from the aimed-at centre to their centroid: a handle sits on
+    the front), toward the face the estimated front points at; then, while no handle was seen,
+    from the opposite side of the last view (from behind nothing of the front shows). The
+    first candidate at least
+    ``SAME_VIEW`` degrees from every view taken wins (a flipped estimate's front points back
+    at the camera); if none is, the first is turned by 45, then 90 degrees either way. The
+    elevation is the first look's, or ``LOW_ELEVATION`` while no look has shown any of a
+    handle (an oven's open door hides its handle from above). A function of the sights."""
     taken = [s.view.azimuth for s in sights]
     hidden = bool(sights) and all(s.handle == 0 for s in sights)
     elevation = min(first.elevation, LOW_ELEVATION) if hidden else first.elevation
-    azimuth = None
+    candidates: list[float] = []
     for s in reversed(sights):
-        toward = _toward(s.centre, s.handle_at)
-        if toward is None and s.front is not None:
-            toward = _azimuth(s.front)
-        if toward is not None:
-            azimuth = toward
-            break
-    if azimuth is None:
-        azimuth = (taken[-1] + 180.0) % 360.0 if taken else first.azimuth
-    for turn in (0.0, 45.0, -45.0, 90.0, -90.0, 180.0):
-        cand = (azimuth + turn) % 360.0
+        for c in (_toward(s.centre, s.handle_at), None if s.front is None else _azimuth(s.front)):
+            if c is not None:
+                candidates.append(c)
+    if taken and not any(s.handle_at is not None for s in sights):
+        candidates.append((taken[-1] + 180.0) % 360.0)
+    if not candidates:
+        return first
+    for c in candidates:
+        if all(_apart(c, t) >= SAME_VIEW for t in taken):
+            return View(round(c, 6), elevation)
+    for turn in (45.0, -45.0, 90.0, -90.0, 180.0):
+        cand = (candidates[0] + turn) % 360.0
         if all(_apart(cand, t) >= SAME_VIEW for t in taken):
             return View(round(cand, 6), elevation)
-    return View((azimuth + 180.0) % 360.0, elevation)
+    return View((candidates[0] + 180.0) % 360.0, elevation)
 
 
 def _toward(

@@ -10,6 +10,7 @@ import pytest
 
 import grace_dsl as eac
 from grace_dsl.agent.estimated import (
+    LOW_ELEVATION,
     PART,
     SAME_VIEW,
     LabelledCloud,
@@ -99,6 +100,16 @@ def test_the_next_view_faces_where_the_handle_was_seen() -> None:
     assert all(abs((got.azimuth - t + 180) % 360 - 180) >= SAME_VIEW for t in (170.0, 10.0))
     assert got.azimuth == 45.0  # turned 45 degrees from the handle's direction (0)
     assert next_view(first, [back, near]) == got  # a function of the sights
+
+
+def test_a_hidden_handle_is_looked_for_from_lower() -> None:
+    """An oven's open door hides its handle from above: with none of it seen yet, the next look
+    goes to LOW_ELEVATION, toward the moved link's pixels (the door)."""
+    first = View(60.0, 45.0)
+    door = Sight(first, (0.0, 0.0, 0.4), handle_at=(0.6, 0.0, 0.2), handle=0)
+    assert next_view(first, [door]) == View(0.0, LOW_ELEVATION)
+    seen = Sight(first, (0.0, 0.0, 0.4), handle_at=(0.6, 0.0, 0.2), handle=30)
+    assert next_view(first, [seen]) == View(0.0, 45.0)
 
 
 @pytest.mark.slow  # renders, fits and runs the hand (about 10 s)
