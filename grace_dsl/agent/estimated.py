@@ -535,7 +535,8 @@ def next_view(first: View, sights: Sequence[Sight]) -> View:
     """Where to look after the refused ``sights`` (a robot walking round the object). The
     candidate directions, newest sight first: toward the face where the handle's pixels were
     seen (the horizontal direction from the aimed-at centre to their centroid: a handle sits on
-    the front), toward the face the estimated front points at; then, while no handle was seen,
+    the front), toward the face the estimated front points at (``_front``: turned round when
+    it faced a camera that saw none of the handle); then, while no handle was seen,
     from the opposite side of the last view (from behind nothing of the front shows). The
     first candidate at least
     ``SAME_VIEW`` degrees from every view taken wins (a flipped estimate's front points back
@@ -547,7 +548,7 @@ def next_view(first: View, sights: Sequence[Sight]) -> View:
     elevation = min(first.elevation, LOW_ELEVATION) if hidden else first.elevation
     candidates: list[float] = []
     for s in reversed(sights):
-        for c in (_toward(s.centre, s.handle_at), None if s.front is None else _azimuth(s.front)):
+        for c in (_toward(s.centre, s.handle_at), _front(s)):
             if c is not None:
                 candidates.append(c)
     if taken and not any(s.handle_at is not None for s in sights):
@@ -562,6 +563,16 @@ def next_view(first: View, sights: Sequence[Sight]) -> View:
         if all(_apart(cand, t) >= SAME_VIEW for t in taken):
             return View(round(cand, 6), elevation)
     return View((candidates[0] + 180.0) % 360.0, elevation)
+
+
+def _front(sight: Sight) -> float | None:
+    """The azimuth the sight's estimated front points at. A front facing the camera although
+    none of the handle was in view is a flipped estimate (a box's back read as its front): the
+    true front is then the other way."""
+    azimuth = None if sight.front is None else _azimuth(sight.front)
+    if azimuth is not None and sight.handle == 0 and _apart(azimuth, sight.view.azimuth) < 90:
+        return (azimuth + 180.0) % 360.0
+    return azimuth
 
 
 def _toward(

@@ -94,6 +94,11 @@ def test_the_next_view_faces_where_the_handle_was_seen() -> None:
     # no handle, but an estimated front toward -x: from azimuth 180
     fitted = Sight(View(100.0, 40.0), centre, front=(-1.0, 0.0, 0.0))
     assert next_view(first, [fitted]).azimuth == 180.0
+    # a front facing a camera that saw none of the handle is flipped: the other way
+    flipped = Sight(View(150.0, 40.0), centre, front=(-1.0, 0.2, 0.0), handle=0)
+    assert next_view(first, [flipped]).azimuth == pytest.approx(
+        (math.degrees(math.atan2(0.2, -1.0)) + 180) % 360
+    )
     # the newest sight decides; a view already taken is not repeated
     near = Sight(View(10.0, 40.0), centre, handle_at=(1.0, 0.0, 0.5))
     got = next_view(first, [back, near])
