@@ -517,8 +517,8 @@ def look(
 
 def _seen(got: Perceived, sight: Sight) -> Perceived:
     """``got`` with its sight, the estimated front included."""
-    front = tuple(float(v) for v in got.pose[:3, 2])
-    return replace(got, sight=replace(sight, front=front))
+    z = got.pose[:3, 2]
+    return replace(got, sight=replace(sight, front=(float(z[0]), float(z[1]), float(z[2]))))
 
 
 def _centroid(

@@ -119,13 +119,13 @@ def test_a_hidden_handle_is_looked_for_from_lower() -> None:
 
 @pytest.mark.slow  # renders, fits and runs the hand (about 10 s)
 def test_a_drawer_seen_from_the_front_is_opened_on_its_estimate() -> None:
-    """CabinetDrawer, open, seed 3: the protocol's camera sees the front (azimuth 354 deg,
-    the front faces +x). With the handle's points labelled the fit places the handle and the
-    hand opens the drawer past half its travel, on the estimate alone."""
+    """CabinetDrawer, open, seed 6: the protocol's camera sees the front (azimuth 49 deg, the
+    front faces +x). With the handle's points labelled the fit places the handle and the hand
+    opens the drawer past half its travel, on the estimate alone (before the labels: a slip)."""
     from grace_dsl.agent.estimated_episode import run_estimated_episode
     from grace_dsl.sim.records import EpisodeConfig
 
-    record = run_estimated_episode(EpisodeConfig("CabinetDrawer", "open", mode="estimated"), 3)
+    record = run_estimated_episode(EpisodeConfig("CabinetDrawer", "open", mode="estimated"), 6)
     (only,) = record.estimate["looks"]  # the first look was accepted
     assert only["handle_points"] > 100 and only["confidence"] >= 0.5
     assert not record.estimate["refused"] and record.estimate["pose_error_mm"] < 25
