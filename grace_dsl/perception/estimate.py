@@ -92,8 +92,9 @@ def estimate(
         concept = load_library()[concept]
     pts = check_cloud(points)
     parts = None if labels is None else check_labels(labels, len(pts))
-    if len(pts) > MAX_POINTS and parts is None:
-        pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
+    if parts is None:
+        if len(pts) > MAX_POINTS:
+            pts = pts[np.random.default_rng(seed).choice(len(pts), MAX_POINTS, replace=False)]
     elif len(pts) > MAX_LABELLED:  # the labelled fit subsamples per part itself
         keep = subsample(parts, MAX_LABELLED, np.random.default_rng(seed))
         pts, parts = pts[keep], parts[keep]

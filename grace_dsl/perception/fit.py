@@ -250,12 +250,12 @@ def free_space(
     tree = cKDTree(a)
     spacing = float(np.median(tree.query(a, k=2)[0][:, 1]))
     lo, hi = a.min(axis=0), a.max(axis=0)
-    margin = margin * (hi - lo) + 4 * spacing
+    pad = margin * (hi - lo) + 4 * spacing
     step = max(spacing, float((hi - lo).max()) / grid)
-    gu = np.arange(lo[0] - margin[0], hi[0] + margin[0], step)
-    gv = np.arange(lo[1] - margin[1], hi[1] + margin[1], step)
-    grid = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
-    free = grid[tree.query(grid)[0] > silhouette * max(spacing, step / 2)]
+    gu = np.arange(lo[0] - pad[0], hi[0] + pad[0], step)
+    gv = np.arange(lo[1] - pad[1], hi[1] + pad[1], step)
+    cells = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
+    free = cells[tree.query(cells)[0] > silhouette * max(spacing, step / 2)]
     if len(free) > n_rays:
         free = free[rng.choice(len(free), n_rays, replace=False)]
     dirs = c + free[:, :1] * e1 + free[:, 1:] * e2

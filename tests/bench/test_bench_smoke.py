@@ -62,3 +62,23 @@ def test_smoke_run(script: str, tmp_path: Path) -> None:
     assert run.stdout.strip()
     committed = ROOT / "bench" / "results"
     assert not any(p.stat().st_mtime > out.stat().st_mtime for p in committed.glob("*.json"))
+
+
+@pytest.mark.bench
+@pytest.mark.slow
+def test_perception_labels_smoke(tmp_path: Path) -> None:
+    """bench_perception's part-labelled rows (``--labels``) at the smoke size."""
+    out = tmp_path / "result.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "bench_perception.py"), "--smoke", "--labels"]
+        + ["--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    result = json.loads(out.read_text())
+    assert result["modes"] == ["fit"] and "StraightHandle" in result["concepts"]

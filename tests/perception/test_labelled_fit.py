@@ -1,0 +1,150 @@
+"""The part-labelled fit: label resolution, typed errors, recovery, flips caught."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from grace_dsl.perception.estimate import confidence, estimate
+from grace_dsl.perception.fit import Fitter, rotation_exp
+from grace_dsl.perception.labels import (
+    LabelError,
+    check_labels,
+    covered,
+    label_masks,
+    labelled_points,
+    subsample,
+    valid_labels,
+)
+from grace_dsl.perception.model import parts_model, sdf_model
+from grace_dsl.perception.views import generate_labelled_views, join_params
+from grace_dsl.runtime.shapes import ShapeTree
+
+SHAPES = ("carcass", "panel", "box", "handle.bar", "handle.left_post", "handle.right_post")
+LINKS = ("base", "drawer", "drawer", "drawer", "drawer", "drawer")
+HELDOUT = 1_000_003
+
+
+def test_a_label_covers_its_link_part_or_shape() -> None:
+    assert covered("drawer", SHAPES, LINKS).tolist() == [False, True, True, True, True, True]
+    assert covered("handle", SHAPES, LINKS).tolist() == [False] * 3 + [True] * 3
+    assert covered("handle.bar", SHAPES, LINKS).tolist() == [False] * 3 + [True, False, False]
+    assert covered("", SHAPES, LINKS).all()  # unlabelled: every shape
+    variant = ("panel", "handle@bar.bar", "handle@bar.left_post")
+    assert covered("handle", variant, ("leaf",) * 3).tolist() == [False, True, True]
+    assert "handle@bar" in valid_labels(variant, ("leaf",) * 3)
+
+
+def test_an_unknown_label_names_the_valid_ones() -> None:
+    with pytest.raises(LabelError, match=r"'knob'.*valid: base, drawer, handle, carcass"):
+        label_masks(np.array(["panel", "knob"]), SHAPES, LINKS, "CabinetDrawer")
+
+
+def test_labels_must_be_one_name_per_point() -> None:
+    with pytest.raises(LabelError, match="3 entries for 4 points"):
+        check_labels(["panel"] * 3, 4)
+    with pytest.raises(LabelError, match="str part names"):
+        check_labels(["panel", 3, "box", "box"], 4)
+    with pytest.raises(LabelError, match="sequence of part names"):
+        check_labels("panel", 5)
+
+
+def test_estimate_refuses_bad_labels_with_typed_errors(lib) -> None:
+    pts = np.random.default_rng(0).normal(size=(200, 3)) * 0.1 + [0, 0, 1.5]
+    with pytest.raises(LabelError, match="199 entries for 200 points"):
+        estimate(lib["CabinetDrawer"], pts, labels=["panel"] * 199)
+    with pytest.raises(LabelError, match="'lid' names no part of CabinetDrawer"):
+        estimate(lib["CabinetDrawer"], pts, labels=["lid"] * 200)
+
+
+def test_the_subsample_keeps_every_part() -> None:
+    labels = np.array(["carcass"] * 9000 + ["panel"] * 900 + ["handle.bar"] * 12)
+    keep = subsample(labels, 384, np.random.default_rng(0))
+    assert len(keep) <= 384 and len(set(keep)) == len(keep)
+    assert (labels[keep] == "handle.bar").sum() == 12  # all of the few
+    assert (labels[keep] == "carcass").sum() > (labels[keep] == "panel").sum()
+
+
+def test_labelled_points_joins_part_clouds() -> None:
+    pts, labels = labelled_points({"panel": np.zeros((5, 3)), "handle": np.ones((2, 3))})
+    assert pts.shape == (7, 3) and labels == ["panel"] * 5 + ["handle"] * 2
+    with pytest.raises(LabelError):
+        labelled_points({})
+
+
+@pytest.mark.slow
+def test_the_per_shape_distances_are_the_union_apart(lib) -> None:
+    concept = lib["CabinetDrawer"]
+    inst = concept.instantiate(joints={"slide": 0.1})
+    shapes = tuple(ShapeTree(inst).shapes)
+    parts, union = parts_model(concept, shapes), sdf_model(concept, shapes)
+    assert parts.shapes == tuple(ShapeTree(inst).outermost())
+    pts = np.random.default_rng(1).normal(size=(200, 3)) * 0.3
+    theta = inst.p[list(parts.float_index)]
+    d = np.asarray(parts.value.batch(theta, inst.p, inst.q, np.zeros(6), pts)).reshape(200, -1)
+    u = np.asarray(union.value.batch(theta, inst.p, inst.q, np.zeros(6), pts)).reshape(-1)
+    np.testing.assert_allclose(d.min(axis=1), u, atol=1e-12)
+
+
+def _errors(concept, view, est) -> tuple[dict[str, float], float, float]:
+    err = {k: 1000 * abs(est.params[k] - view.params[k]) for k in view.params}
+    rel = est.pose[:3, :3].T @ view.pose[:3, :3]
+    deg = math.degrees(math.acos(float(np.clip((np.trace(rel) - 1) / 2, -1, 1))))
+    return err, 1000 * float(np.linalg.norm(est.pose[:3, 3] - view.pose[:3, 3])), deg
+
+
+@pytest.mark.slow
+def test_the_labelled_fit_recovers_a_drawer_the_unlabelled_one_misses(lib) -> None:
+    """Noise-free, every pixel of the first held-out view (its handle: 1 % of the pixels)."""
+    concept = lib["CabinetDrawer"]
+    view, labels = generate_labelled_views(concept, 1, HELDOUT, noise=0.0, every_pixel=True)[0]
+    pts = view.points.astype(float)
+    err, mm, deg = _errors(concept, view, estimate(concept, pts, labels=labels))
+    assert err["handle.length"] < 3 and err["handle_y"] < 3, err
+    assert mm < 3 and deg < 2, (mm, deg)
+    plain, _, _ = _errors(concept, view, estimate(concept, pts))
+    assert max(plain["handle.length"], plain["handle_y"]) > 3, plain
+
+
+@pytest.mark.slow
+def test_the_labelled_fit_puts_a_cabinets_handle_on_its_points(lib) -> None:
+    """HingedCabinet, noise-free: the handle's size and place in space (its points on its own
+    shapes), the rotation and the hinge side. Not asserted: ``handle_y`` and the origin, which
+    inherit the height error when the cabinet's bottom edge is a few pixels (docs)."""
+    concept = lib["HingedCabinet"]
+    view, labels = generate_labelled_views(concept, 2, HELDOUT, noise=0.0, every_pixel=True)[1]
+    pts = view.points.astype(float)
+    est = estimate(concept, pts, labels=labels)
+    err, mm, deg = _errors(concept, view, est)
+    assert err["handle.length"] < 3 and err["handle.radius"] < 3, err
+    assert err["handle_y"] < 5 and mm < 5 and deg < 2, (err, mm, deg)
+    assert est.discrete["hinge_side"] == view.fixed["hinge_side"]
+    assert est.confidence > 0.5
+
+
+def _flipped(view) -> np.ndarray:
+    flip = np.eye(4)
+    flip[:3, :3] = rotation_exp(np.array([0.0, math.pi, 0.0]))
+    return view.pose @ flip
+
+
+@pytest.mark.slow
+def test_a_fit_turned_180_degrees_is_corrected_or_not_trusted(lib) -> None:
+    concept = lib["CabinetDrawer"]
+    view, labels = generate_labelled_views(concept, 1, HELDOUT, noise=0.002, every_pixel=True)[0]
+    pts = view.points.astype(float)
+    est = estimate(concept, pts, labels=labels, pose_hint=_flipped(view))
+    _, mm, deg = _errors(concept, view, est)
+    assert (deg < 3 and mm < 10) or est.confidence < 0.5, (mm, deg, est.confidence)
+    # held at the flipped pose (no iterations), the front's points are off the front
+    params = join_params(concept, view.params, view.fixed)
+    some = np.random.default_rng(0).choice(len(pts), 2000, replace=False)
+    names = np.array(labels)[some]
+    fitter = Fitter(concept, params, view.joints, labels=names)
+    held = fitter.run(pts[some], _flipped(view), np.zeros(3), iterations=0)
+    assert held.part_inliers < 0.5
+    assert confidence(held.residual, held.inliers, 2000, held.part_inliers) < 0.5
+    right = fitter.run(pts[some], view.pose, np.zeros(3), iterations=0)
+    assert confidence(right.residual, right.inliers, 2000, right.part_inliers) > 0.8
