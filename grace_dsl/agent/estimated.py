@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from functools import cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -55,9 +54,6 @@ FRAMING = 3.0  # the camera stands this many bounding radii from the object's ce
 IMAGE = (320, 240)  # pixels (width, height)
 PART = "handle"  # the part whose pixels a look counts (the part most grasps hold)
 MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
-#: of the fit's points, at most this share is the handle's (all of its pixels when fewer): a
-#: uniform draw gives a cabinet's handle a handful of points, too few to measure it by
-PART_SHARE = 0.35
 LOOKS = 3  # at most this many looks per episode: the protocol's and two the agent chooses
 SAME_VIEW = 20.0  # degrees: a view this near one already taken would show nothing new
 LOW_ELEVATION = 20.0  # degrees: where a look goes when no look has shown the handle from above
@@ -286,9 +282,10 @@ class LabelledCloud:
     def __len__(self) -> int:
         return len(self.points)
 
-    def on(self, label: str) -> np.ndarray:
-        """Points labelled ``label`` or a variant of it (``handle@bar`` is a ``handle``)."""
-        return np.array([lab.split("@")[0] == label for lab in self.labels], bool).reshape(-1)
+    def on(self, part: str) -> np.ndarray:
+        """Points on ``part``: labelled with it, a variant of it or one of its shapes
+        (``handle@bar`` and ``handle.left_post`` are the ``handle``'s)."""
+        return np.array([_part_of(lab) == part for lab in self.labels], bool).reshape(-1)
 
     def count(self, label: str) -> int:
         return int(np.count_nonzero(self.on(label)))
@@ -298,21 +295,10 @@ class LabelledCloud:
         owners = self.labels if self.owners is None else self.owners
         return np.asarray(owners == link, bool)
 
-    def select(self, n: int, part: str, share: float, seed: int) -> LabelledCloud:
-        """At most ``n`` points: every point of ``part`` up to ``share`` of ``n``, the rest
-        drawn uniformly (seeded) from the others. Why: a uniform draw of a cabinet gives its
-        handle a handful of points, too few to measure a 15 mm bar by."""
-        if len(self.points) <= n:
-            return self
-        rng = np.random.default_rng(seed)
-        mask = self.on(part)
-        on, off = np.flatnonzero(mask), np.flatnonzero(~mask)
-        if len(on) > int(share * n):
-            on = rng.choice(on, int(share * n), replace=False)
-        off = rng.choice(off, min(len(off), n - len(on)), replace=False)
-        keep = np.sort(np.concatenate([on, off]))
-        owners = None if self.owners is None else self.owners[keep]
-        return LabelledCloud(self.points[keep], self.labels[keep], owners)
+
+def _part_of(label: str) -> str:
+    """The part a label names (``handle`` of ``handle@bar`` and of ``handle.bar``)."""
+    return label.split(".")[0].split("@")[0]
 
 
 def labelled_cloud(
@@ -326,11 +312,16 @@ def labelled_cloud(
     """The object's cloud with a label per point, from the segmenter's masks for the concept's
     name: a pixel in several masks takes the smallest one's name (a handle inside its drawer's
     link is the handle) as its label and the largest one's (the drawer) as its owner, so any
-    segmenter that names parts and links gives both. The depth gets the sensor's noise
-    (seeded); pixels with no return are dropped."""
+    segmenter that names parts and links gives both. With the renderer's ground truth (no
+    ``segmenter`` given) a pixel on a named shape is labelled with that shape
+    (``handle.left_post``): finer labels pin a bar's ends, where a part label lets a longer bar
+    cover the same points. The depth gets the sensor's noise (seeded); pixels with no return
+    are dropped."""
     seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
     depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
     masks = seg.segment(rgb, depth, concept)
+    if segmenter is None and shot.shape_labels is not None:  # the renderer's shapes
+        masks = {**masks, **{n: shot.shape_labels == k for k, n in enumerate(shot.shapes)}}
     names = sorted(masks, key=lambda k: (-int(np.count_nonzero(masks[k])), k))
     region = np.full(depth.shape, -1, dtype=np.int32)
     owner = np.full(depth.shape, -1, dtype=np.int32)
@@ -356,10 +347,10 @@ def estimate_cloud(
     parameters and pose, from the whole cloud) where the concept has weights, with the ``fixed``
     (non-float) parameters given; the estimate and the concept's world pose.
 
-    A ``LabelledCloud`` is thinned to the fit's budget keeping the handle's points
-    (``LabelledCloud.select``) and its labels go to the fit where ``estimate`` takes them
-    (each point then measured against the shapes of its own part or link)."""
-    from grace_dsl.perception.estimate import MAX_POINTS, estimate
+    A ``LabelledCloud`` goes whole with its labels (each point then measured against the
+    shapes of its own part, link or shape; the fit thins it keeping every label's share, so
+    the handle's pixels count, and reads the outline's free space from all of them)."""
+    from grace_dsl.perception.estimate import estimate
     from grace_dsl.perception.views import join_params
     from grace_dsl.perception.weights import shipped_path
 
@@ -372,27 +363,11 @@ def estimate_cloud(
 
         learned = estimate_learned(concept, whole)
         init, hint = join_params(concept, learned.params, init), learned.pose
-    extra: dict[str, Any] = {}
-    fit_points = whole
-    if cloud is not None:
-        chosen = cloud.select(MAX_POINTS, PART, PART_SHARE, seed)
-        fit_points = chosen.points
-        if _takes_labels():
-            extra["labels"] = chosen.labels
-    est = estimate(concept, fit_points, init=init or None, pose_hint=hint, seed=seed, **extra)
+    labels = None if cloud is None else list(cloud.labels)
+    est = estimate(concept, whole, init=init or None, pose_hint=hint, seed=seed, labels=labels)
     if hint is not None:
         est = replace(est, source="learned+fit")
     return est, np.asarray(camera_pose, float) @ est.pose
-
-
-@cache
-def _takes_labels() -> bool:
-    """Whether perception's ``estimate`` takes per-point labels (``labels=``)."""
-    import inspect
-
-    from grace_dsl.perception.estimate import estimate
-
-    return "labels" in inspect.signature(estimate).parameters
 
 
 def fixed_params(concept: Concept, given: Mapping[str, Any] | None = None) -> dict[str, Any]:

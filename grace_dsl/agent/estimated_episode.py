@@ -19,8 +19,8 @@ fails with ``no_feasible_grasp`` (no grasp the agent trusts; the record's ``esti
 estimate was refused and why). ``looks=1`` (the bench's ``--single-view``) refuses instead of
 looking again.
 
-Every look's cloud carries a label per point (its part, else its link: the renderer's
-segmentation), and the fit gets the handle's points (``estimated.LabelledCloud.select``).
+Every look's cloud carries a label per point (its shape, part or link: the renderer's
+segmentation), and the fit gets every pixel with its label (``estimated.labelled_cloud``).
 
 Perception estimates the real-valued parameters, the pose and the joints; the discrete ones
 (integers, choices, flags: a concept's structure, which the task parser or a VLM names with the

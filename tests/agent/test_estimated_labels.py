@@ -1,5 +1,5 @@
-"""Estimated mode's looks: a label per point from the renderer's segmentation, the handle's
-points kept for the fit, and where the agent looks next (a pure, deterministic choice)."""
+"""Estimated mode's looks: a label per point from the renderer's segmentation (shape, part,
+link) and where the agent looks next (a pure, deterministic choice)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ from grace_dsl.agent.estimated import (
     LOW_ELEVATION,
     PART,
     SAME_VIEW,
-    LabelledCloud,
     Sight,
     View,
     camera_for,
@@ -48,11 +47,14 @@ def test_the_handles_points_carry_the_handles_label(drawer_shot) -> None:  # typ
     # every pixel of the object is one point, the handle's pixels are the handle's points
     assert len(cloud) == int(np.count_nonzero((shot.labels >= 0) & (shot.depth > 0)))
     assert cloud.count(PART) == int(np.count_nonzero(on_handle & (shot.depth > 0))) > 50
-    assert np.allclose(cloud.points[cloud.labels == PART],
+    assert np.allclose(cloud.points[cloud.on(PART)],
                        back_project(shot.depth, shot.intrinsics, on_handle))  # fmt: skip
-    # the rest are its links' (the drawer and the carcass), none unlabelled
-    others = set(cloud.labels[cloud.labels != PART])
-    assert others and others <= set(shot.links)
+    # each point is labelled with its shape (the handle's bar and posts apart), owned by its link
+    assert {str(x) for x in cloud.labels[cloud.on(PART)]} == {
+        "handle.bar", "handle.left_post", "handle.right_post"}  # fmt: skip
+    assert set(cloud.labels) <= set(shot.shapes)
+    assert cloud.owners is not None and set(cloud.owners) == {"base", "drawer"}
+    assert set(cloud.owners[cloud.on(PART)]) == {"drawer"}  # the handle is on the drawer
     # the part's cloud that object_cloud gives is the same pixels
     points, handle = object_cloud(shot, frame.rgb, "CabinetDrawer", seed=0, noise=0.0, part=PART)
     assert handle is not None and len(handle) == cloud.count(PART) and len(points) == len(cloud)
@@ -65,19 +67,6 @@ def test_the_noise_is_seeded_and_leaves_the_labels(drawer_shot) -> None:  # type
     clean = labelled_cloud(shot, frame.rgb, "CabinetDrawer", seed=3, noise=0.0)
     assert np.array_equal(a.points, b.points) and np.array_equal(a.labels, clean.labels)
     assert 0.001 < float(np.std(a.points[:, 2] - clean.points[:, 2])) < 0.003  # sigma 2 mm
-
-
-def test_the_fit_gets_the_handles_points() -> None:
-    rng = np.random.default_rng(0)
-    labels = np.array(["body"] * 9000 + [PART] * 120 + ["drawer"] * 3000)
-    cloud = LabelledCloud(rng.normal(size=(len(labels), 3)), labels)
-    chosen = cloud.select(768, PART, 0.35, seed=1)
-    assert len(chosen) == 768 and chosen.count(PART) == 120  # all of them: fewer than 35 %
-    assert chosen.select(768, PART, 0.35, seed=1) is chosen  # within the budget: unchanged
-    many = LabelledCloud(cloud.points, np.where(np.arange(len(labels)) % 2 == 0, PART, "body"))
-    assert many.select(768, PART, 0.35, seed=1).count(PART) == int(0.35 * 768)
-    again = cloud.select(768, PART, 0.35, seed=1)
-    assert np.array_equal(again.points, chosen.points)  # seeded
 
 
 def test_the_next_view_faces_where_the_handle_was_seen() -> None:
