@@ -223,8 +223,7 @@ def object_shot(
             name = model.geom(int(g)).name
             if not name.startswith(prefix):
                 continue
-            stem = name[len(prefix) :].removesuffix("__collision")
-            shape = spelled.get(stem, stem.replace("__", "."))
+            shape = _shape_of(name[len(prefix) :].removesuffix("__collision"), spelled)
             if shape not in shapes:
                 shapes.append(shape)
             shape_labels[(geoms == g) & (labels >= 0)] = shapes.index(shape)
@@ -241,6 +240,15 @@ def _shape_names(inst: Instance) -> dict[str, str]:
     from grace_dsl.runtime.shapes import ShapeTree
 
     return {xml_name(n): n for n in ShapeTree(inst).outermost()}
+
+
+def _shape_of(stem: str, spelled: Mapping[str, str]) -> str:
+    """The concept shape a geom stands for: its name, or the longest one it extends (a shape
+    exported in convex pieces: ``tray__back`` is a piece of ``tray``)."""
+    if stem in spelled:
+        return spelled[stem]
+    owners = [k for k in spelled if stem.startswith(k + "__") or stem.startswith(k + "_")]
+    return spelled[max(owners, key=len)] if owners else stem.replace("__", ".")
 
 
 def intrinsics(frame: Frame) -> Intrinsics:
