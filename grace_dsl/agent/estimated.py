@@ -273,7 +273,7 @@ def object_cloud(
     cloud = labelled_cloud(shot, rgb, concept, seed, segmenter, noise)
     if not part:
         return cloud.points, None
-    on_part = cloud.labels == part
+    on_part = cloud.on(part)
     return cloud.points, cloud.points[on_part] if on_part.any() else None
 
 
