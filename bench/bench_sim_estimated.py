@@ -10,7 +10,7 @@ refused, and the accepted estimates' median errors (worst length, pose).
 
     python bench/bench_sim_estimated.py --small             # 3 categories x 2 tasks x 2 episodes
     python bench/bench_sim_estimated.py --episodes 10 --log bench/results/sim_estimated.jsonl
-    python bench/bench_sim_estimated.py --single-view        # no second view from the other side
+    python bench/bench_sim_estimated.py --single-view        # the protocol's view only
 
 ``--log`` appends one JSON line per record as it finishes; a run given the same log skips the
 episodes it already holds (resume after a stop). Episode i of every category and task has seed
@@ -40,7 +40,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--categories", nargs="+", default=None)
     ap.add_argument("--episodes", type=int, default=10, help="episodes per category and task")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--single-view", action="store_true", help="no second view when refused")
+    ap.add_argument("--single-view", action="store_true", help="refuse instead of looking again")
+    ap.add_argument("--looks", type=int, default=None, help="at most this many looks (default 3)")
+    ap.add_argument("--min-confidence", type=float, default=None, help="refuse below (0.7)")
     ap.add_argument("--small", action="store_true", help="3 categories, 2 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
     ap.add_argument("--log", type=Path, default=None, help="JSON lines, appended and resumed")
@@ -52,13 +54,17 @@ def main(argv: list[str] | None = None) -> int:
         categories, episodes = tuple(args.categories or SMALL), 2
     if args.smoke:
         categories, episodes = (categories[0],), 1
+    from grace_dsl.agent.estimated import LOOKS, MIN_CONFIDENCE
+
+    looks = 1 if args.single_view else args.looks or LOOKS
+    min_confidence = MIN_CONFIDENCE if args.min_confidence is None else args.min_confidence
     started = time.perf_counter()
     done = _read_log(args.log)
     jobs = [(c, t, args.seed + i) for c in categories for t in TASKS for i in range(episodes)]
     records = [done[j] for j in jobs if j in done]
     todo = [j for j in jobs if j not in done]
     for category, task, seed in _progress(todo):
-        pair = run_pair(category, task, seed, second_view=not args.single_view)
+        pair = run_pair(category, task, seed, looks, min_confidence)
         records.append(pair)
         if args.log is not None:
             args.log.parent.mkdir(parents=True, exist_ok=True)
@@ -71,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
         "command": " ".join(["python bench/bench_sim_estimated.py", *(argv or sys.argv[1:])]),
         "episodes": episodes,
         "seed": args.seed,
-        "single_view": args.single_view,
+        "looks": looks,
+        "min_confidence": min_confidence,
         "wall_seconds": round(time.perf_counter() - started, 1),
         "summary": rows,
     }
@@ -80,7 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def run_pair(category: str, task: str, seed: int, second_view: bool = True) -> dict[str, Any]:
+def run_pair(
+    category: str, task: str, seed: int, looks: int = 3, min_confidence: float = 0.7
+) -> dict[str, Any]:
     """The oracle and the estimated episode of one (category, task, seed)."""
     from grace_dsl.agent.estimated_episode import estimated_episode
     from grace_dsl.sim.records import EpisodeConfig
@@ -89,7 +98,8 @@ def run_pair(category: str, task: str, seed: int, second_view: bool = True) -> d
     base = EpisodeConfig(category, task)  # type: ignore[arg-type]
     oracle = guarded(_oracle, base, seed)
     est_config = EpisodeConfig(category, task, mode="estimated")  # type: ignore[arg-type]
-    estimated = guarded(partial(estimated_episode, second_view=second_view), est_config, seed)
+    run = partial(estimated_episode, looks=looks, min_confidence=min_confidence)
+    estimated = guarded(run, est_config, seed)
     return {
         "concept": category,
         "task": task,
@@ -138,6 +148,7 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 ),  # fmt: skip
                 "refused": sum(1 for p in ps if (p["estimated"]["estimate"] or {}).get("refused")),
                 "second_view": sum(1 for k in looks if k > 1),
+                "looks": sum(looks),
                 "median_length_error_max_mm": _median(accepted, "length_error_max_mm"),
                 "median_pose_error_mm": _median(accepted, "pose_error_mm"),
                 "median_pose_error_deg": _median(accepted, "pose_error_deg"),

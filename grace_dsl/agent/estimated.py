@@ -46,7 +46,7 @@ if TYPE_CHECKING:
     from grace_dsl.runtime.library import Concept
     from grace_dsl.sim.multi import MultiWorld
 
-MIN_CONFIDENCE = 0.5  # below this an estimate is refused, never acted on
+MIN_CONFIDENCE = 0.7  # below this an estimate is refused, never acted on (measured)
 NOISE = 0.002  # m: the depth sensor's Gaussian sigma
 #: OpenCV camera axes (x right, y down, z forward) from MuJoCo's (x right, y up, z backward)
 CV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -54,6 +54,9 @@ FRAMING = 3.0  # the camera stands this many bounding radii from the object's ce
 IMAGE = (320, 240)  # pixels (width, height)
 PART = "handle"  # the part whose pixels a look counts (the part most grasps hold)
 MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
+LOOKS = 3  # at most this many looks per episode: the protocol's and two the agent chooses
+SAME_VIEW = 20.0  # degrees: a view this near one already taken would show nothing new
+LOW_ELEVATION = 20.0  # degrees: where a look goes when no look has shown the handle from above
 
 
 class EstimateRefused(PerceptionError):
@@ -62,9 +65,12 @@ class EstimateRefused(PerceptionError):
     ``estimate`` holds the refused estimate (its residual and confidence say why); take another
     view, or lower ``min_confidence`` knowingly."""
 
-    def __init__(self, message: str, perceived: Perceived | None = None):
+    def __init__(
+        self, message: str, perceived: Perceived | None = None, sight: Sight | None = None
+    ):
         super().__init__(message)
         self.perceived = perceived
+        self.sight = sight if sight is not None else perceived.sight if perceived else None
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,20 @@ class View:
     def opposite(self) -> View:
         """The view from the other side of the object (azimuth + 180 degrees)."""
         return View((self.azimuth + 180.0) % 360.0, self.elevation)
+
+
+@dataclass(frozen=True)
+class Sight:
+    """What a look showed in the world frame, for choosing the next view: where the handle's
+    pixels were (their centroid, None if none were seen), where the estimated front points
+    (the fitted concept's +z, None when no fit ran) and how many of the handle's pixels it
+    saw (-1: the concept has no handle)."""
+
+    view: View
+    centre: tuple[float, float, float]  # where the camera was aimed
+    handle_at: tuple[float, float, float] | None = None
+    front: tuple[float, float, float] | None = None
+    handle: int = -1  # the handle's pixels seen (-1: the concept has none)
 
 
 @dataclass(frozen=True)
@@ -95,6 +115,7 @@ class Perceived:
     seconds: float
     estimate: Estimate | None = field(default=None, compare=False, repr=False)
     part_points: int = -1  # the handle's pixels in view (-1: the concept has no handle)
+    sight: Sight | None = field(default=None, compare=False, repr=False)
 
     def instance(self, concept: Concept) -> Instance:
         """The agent's model of the object: the estimated instance at its world pose."""
@@ -197,17 +218,37 @@ def object_shot(
     if geoms is not None:
         shape_labels = np.full(geoms.shape, -1, dtype=np.int16)
         prefix = scene.prefixes[index]
+        spelled = _shape_names(scene.instances[index])
         for g in np.unique(geoms[labels >= 0]):
             name = model.geom(int(g)).name
             if not name.startswith(prefix):
                 continue
-            shape = name[len(prefix) :].removesuffix("__collision").replace("__", ".")
+            shape = _shape_of(name[len(prefix) :].removesuffix("__collision"), spelled)
             if shape not in shapes:
                 shapes.append(shape)
             shape_labels[(geoms == g) & (labels >= 0)] = shapes.index(shape)
     camera_pose = frame.camera.pose() @ CV
     return DepthRender(frame.depth, labels, links, camera_pose, intrinsics(frame), shape_labels,
                        tuple(shapes))  # fmt: skip
+
+
+def _shape_names(inst: Instance) -> dict[str, str]:
+    """The concept's outermost shape names by their spelling in the exported model's geom
+    names (``handle@bar.bar`` is ``handle_bar__bar`` there): labels must name the concept's
+    own shapes and parts, which the fit resolves."""
+    from grace_dsl.export.common import xml_name
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    return {xml_name(n): n for n in ShapeTree(inst).outermost()}
+
+
+def _shape_of(stem: str, spelled: Mapping[str, str]) -> str:
+    """The concept shape a geom stands for: its name, or the longest one it extends (a shape
+    exported in convex pieces: ``tray__back`` is a piece of ``tray``)."""
+    if stem in spelled:
+        return spelled[stem]
+    owners = [k for k in spelled if stem.startswith(k + "__") or stem.startswith(k + "_")]
+    return spelled[max(owners, key=len)] if owners else stem.replace("__", ".")
 
 
 def intrinsics(frame: Frame) -> Intrinsics:
@@ -228,44 +269,110 @@ def object_cloud(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The object's camera-frame cloud (OpenCV axes: the segmenter's masks for the concept's
     name joined) from the depth with the sensor's noise (seeded), and that of its ``part``
-    (None when not asked for)."""
+    (None when not asked for or not in view)."""
+    cloud = labelled_cloud(shot, rgb, concept, seed, segmenter, noise)
+    if not part:
+        return cloud.points, None
+    on_part = cloud.on(part)
+    return cloud.points, cloud.points[on_part] if on_part.any() else None
+
+
+@dataclass(frozen=True)
+class LabelledCloud:
+    """The object's camera-frame points and, per point, the name of the region it lies on:
+    its part where the segmenter tells one (``handle``), else its link (``drawer``)."""
+
+    points: np.ndarray  # (N, 3)
+    labels: np.ndarray  # (N,) str
+    #: (N,) str, the largest region holding each point: its link (a part lies in its link)
+    owners: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def on(self, part: str) -> np.ndarray:
+        """Points on ``part``: labelled with it, a variant of it or one of its shapes
+        (``handle@bar`` and ``handle.left_post`` are the ``handle``'s)."""
+        return np.array([_part_of(lab) == part for lab in self.labels], bool).reshape(-1)
+
+    def count(self, label: str) -> int:
+        return int(np.count_nonzero(self.on(label)))
+
+    def owned_by(self, link: str) -> np.ndarray:
+        """Points on ``link`` (its parts' included)."""
+        owners = self.labels if self.owners is None else self.owners
+        return np.asarray(owners == link, bool)
+
+
+def _part_of(label: str) -> str:
+    """The part a label names (``handle`` of ``handle@bar`` and of ``handle.bar``)."""
+    return label.split(".")[0].split("@")[0]
+
+
+def labelled_cloud(
+    shot: DepthRender,
+    rgb: np.ndarray,
+    concept: str,
+    seed: int,
+    segmenter: Segmenter | None = None,
+    noise: float = NOISE,
+) -> LabelledCloud:
+    """The object's cloud with a label per point, from the segmenter's masks for the concept's
+    name: a pixel in several masks takes the smallest one's name (a handle inside its drawer's
+    link is the handle) as its label and the largest one's (the drawer) as its owner, so any
+    segmenter that names parts and links gives both. With the renderer's ground truth (no
+    ``segmenter`` given) a pixel on a named shape is labelled with that shape
+    (``handle.left_post``): finer labels pin a bar's ends, where a part label lets a longer bar
+    cover the same points. The depth gets the sensor's noise (seeded); pixels with no return
+    are dropped."""
     seg = segmenter if segmenter is not None else GroundTruthSegmenter(shot, concept)
     depth = DepthNoise(sigma=noise).apply(shot.depth, np.random.default_rng(seed))
     masks = seg.segment(rgb, depth, concept)
-    if not masks:
-        return np.zeros((0, 3)), None
-    mask = np.logical_or.reduce(list(masks.values()))
-    points = back_project(depth, shot.intrinsics, mask)
-    found = seg.segment(rgb, depth, part) if part else {}
-    if not found:
-        return points, None
-    part_mask = np.logical_or.reduce(list(found.values())) & mask
-    part_points = back_project(depth, shot.intrinsics, part_mask)
-    return points, part_points
+    if segmenter is None and shot.shape_labels is not None:  # the renderer's shapes
+        masks = {**masks, **{n: shot.shape_labels == k for k, n in enumerate(shot.shapes)}}
+    names = sorted(masks, key=lambda k: (-int(np.count_nonzero(masks[k])), k))
+    region = np.full(depth.shape, -1, dtype=np.int32)
+    owner = np.full(depth.shape, -1, dtype=np.int32)
+    for k, name in enumerate(names):  # largest first: smaller regions overwrite
+        region[np.asarray(masks[name], bool)] = k
+    for k in reversed(range(len(names))):  # largest last: it owns what it holds
+        owner[np.asarray(masks[names[k]], bool)] = k
+    inside = region >= 0
+    points = back_project(depth, shot.intrinsics, inside)
+    table = np.array(names if names else [""], dtype=object)
+    kept = inside & (depth > 0)
+    return LabelledCloud(points, table[region[kept]].astype(str), table[owner[kept]].astype(str))
 
 
 def estimate_cloud(
     concept: Concept,
-    points: np.ndarray,
+    points: np.ndarray | LabelledCloud,
     camera_pose: np.ndarray,
     seed: int = 0,
     fixed: Mapping[str, Any] | None = None,
 ) -> tuple[Estimate, np.ndarray]:
     """``eac.estimate`` on a camera-frame cloud, started from the shipped network (its
-    parameters and pose) where the concept has weights, with the ``fixed`` (non-float)
-    parameters given; the estimate and the concept's world pose."""
+    parameters and pose, from the whole cloud) where the concept has weights, with the ``fixed``
+    (non-float) parameters given; the estimate and the concept's world pose.
+
+    A ``LabelledCloud`` goes whole with its labels (each point then measured against the
+    shapes of its own part, link or shape; the fit thins it keeping every label's share, so
+    the handle's pixels count, and reads the outline's free space from all of them)."""
     from grace_dsl.perception.estimate import estimate
     from grace_dsl.perception.views import join_params
     from grace_dsl.perception.weights import shipped_path
 
+    cloud = points if isinstance(points, LabelledCloud) else None
+    whole = cloud.points if cloud is not None else np.asarray(points, float)
     init: dict[str, Any] = dict(fixed or {})
     hint = None
-    if shipped_path(concept.name).is_file():
+    if shipped_path(concept.name).is_file() and len(whole) >= 1:
         from grace_dsl.perception.learned import estimate_learned
 
-        learned = estimate_learned(concept, points)
+        learned = estimate_learned(concept, whole)
         init, hint = join_params(concept, learned.params, init), learned.pose
-    est = estimate(concept, points, init=init or None, pose_hint=hint, seed=seed)
+    labels = None if cloud is None else list(cloud.labels)
+    est = estimate(concept, whole, init=init or None, pose_hint=hint, seed=seed, labels=labels)
     if hint is not None:
         est = replace(est, source="learned+fit")
     return est, np.asarray(camera_pose, float) @ est.pose
@@ -285,7 +392,7 @@ def fixed_params(concept: Concept, given: Mapping[str, Any] | None = None) -> di
 
 def perceive(
     concept: Concept,
-    points: np.ndarray,
+    points: np.ndarray | LabelledCloud,
     camera_pose: np.ndarray,
     view: View,
     seed: int = 0,
@@ -342,24 +449,44 @@ def look(
     segmenter: Segmenter | None = None,
     min_confidence: float = MIN_CONFIDENCE,
     fixed: Mapping[str, Any] | None = None,
+    hold: str = "",
 ) -> Perceived:
-    """Render the world from ``view`` about ``target``, segment object ``index`` and estimate
-    its concept (``perceive``); also refused when the estimated front (the concept's +z, the
-    side a robot approaches, where its handle is) faces away from the camera: the view did not
-    show what the agent would grasp, or when a concept with a handle shows fewer than
-    ``MIN_PART_POINTS`` of its pixels."""
+    """Render the world from ``view`` about ``target``, segment object ``index`` with a label
+    per point (``labelled_cloud``) and estimate its concept (``perceive``); also refused when
+    the estimated front (the concept's +z, the side a robot approaches, where its handle is)
+    faces away from the camera: the view did not show what the agent would grasp, or when
+    fewer than ``MIN_PART_POINTS`` pixels are seen of the concept's handle (if it has one) or
+    of link ``hold`` (the link the task moves: a door's leaf is hidden from behind). A refusal
+    carries what was seen (``Sight``: where those pixels were, the estimated front), from which
+    ``next_view`` chooses where to look next."""
     camera = camera_for(view, target, radius)
     frame, geoms = render_from(scene, model, data, camera)
     shot = object_shot(frame, scene, model, index, geoms)
-    wanted = PART if PART in _parts(concept) else ""
-    points, part = object_cloud(shot, frame.rgb, concept.name, seed, segmenter, part=wanted)
-    seen = -1 if not wanted else 0 if part is None else len(part)
-    if 0 <= seen < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
-        raise EstimateRefused(
-            f"{concept.name} from view {_view(view)}: {seen} pixels of its {PART} are in view "
-            f"(at least {MIN_PART_POINTS} needed); take another view"
-        )
-    got = perceive(concept, points, shot.camera_pose, view, seed, min_confidence, fixed, seen)
+    cloud = labelled_cloud(shot, frame.rgb, concept.name, seed, segmenter)
+    wanted = any(p.split("@")[0] == PART for p in _parts(concept))
+    seen = cloud.count(PART) if wanted else -1
+    held = cloud.owned_by(hold) if hold else np.zeros(len(cloud), bool)
+    centre = (float(target[0]), float(target[1]), float(target[2]))
+    handle_at = _centroid(cloud, cloud.on(PART), shot.camera_pose) if seen > 0 else None
+    sight = Sight(view, centre, handle_at, handle=seen)
+    for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
+        if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
+            why = (
+                f"{concept.name} from view {_view(view)}: {n} pixels of its {name} are in view "
+                f"(at least {MIN_PART_POINTS} needed); take another view"
+            )
+            try:  # never acted on: only where its front points, to choose the next view
+                guess = perceive(concept, cloud, shot.camera_pose, view, seed, 0.0, fixed, seen)
+            except EstimateRefused:
+                raise EstimateRefused(why, sight=sight) from None
+            raise EstimateRefused(why, _seen(guess, sight))
+    try:
+        got = perceive(concept, cloud, shot.camera_pose, view, seed, min_confidence, fixed, seen)
+    except EstimateRefused as exc:
+        if exc.perceived is None:
+            raise EstimateRefused(str(exc), sight=sight) from exc
+        raise EstimateRefused(str(exc), _seen(exc.perceived, sight)) from exc
+    got = _seen(got, sight)
     eye = camera.pose()[:3, 3]
     toward = (eye - got.pose[:3, 3]) / max(float(np.linalg.norm(eye - got.pose[:3, 3])), 1e-9)
     if float(got.pose[:3, 2] @ toward) <= 0.0:
@@ -371,19 +498,112 @@ def look(
     return got
 
 
+def _seen(got: Perceived, sight: Sight) -> Perceived:
+    """``got`` with its sight, the estimated front included."""
+    z = got.pose[:3, 2]
+    return replace(got, sight=replace(sight, front=(float(z[0]), float(z[1]), float(z[2]))))
+
+
+def _centroid(
+    cloud: LabelledCloud, on: np.ndarray, camera_pose: np.ndarray
+) -> tuple[float, float, float] | None:
+    """The world centroid of the points ``on`` (None when there are none)."""
+    if not on.any():
+        return None
+    c = np.asarray(camera_pose, float) @ np.append(cloud.points[on].mean(axis=0), 1.0)
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+def next_view(first: View, sights: Sequence[Sight]) -> View:
+    """Where to look after the refused ``sights`` (a robot walking round the object). The
+    candidate directions, newest sight first: toward the face where the handle's pixels were
+    seen (the horizontal direction from the aimed-at centre to their centroid: a handle sits on
+    the front), toward the face the estimated front points at (``_front``: turned round when
+    it faced a camera that saw none of the handle); then, while no handle was seen,
+    from the opposite side of the last view (from behind nothing of the front shows). The
+    first candidate at least
+    ``SAME_VIEW`` degrees from every view taken wins (a flipped estimate's front points back
+    at the camera); if none is, the first is turned by 45, then 90 degrees either way. The
+    elevation is the first look's, or ``LOW_ELEVATION`` while no look has shown any of a
+    handle (an oven's open door hides its handle from above). A function of the sights."""
+    taken = [s.view.azimuth for s in sights]
+    hidden = bool(sights) and all(s.handle == 0 for s in sights)
+    elevation = min(first.elevation, LOW_ELEVATION) if hidden else first.elevation
+    candidates: list[float] = []
+    for s in reversed(sights):
+        for c in (_toward(s.centre, s.handle_at), _front(s)):
+            if c is not None:
+                candidates.append(c)
+    if taken and not any(s.handle_at is not None for s in sights):
+        candidates.append((taken[-1] + 180.0) % 360.0)
+    if not candidates:
+        return first
+    for c in candidates:
+        if all(_apart(c, t) >= SAME_VIEW for t in taken):
+            return View(round(c, 6), elevation)
+    for turn in (45.0, -45.0, 90.0, -90.0, 180.0):
+        cand = (candidates[0] + turn) % 360.0
+        if all(_apart(cand, t) >= SAME_VIEW for t in taken):
+            return View(round(cand, 6), elevation)
+    return View((candidates[0] + 180.0) % 360.0, elevation)
+
+
+def _front(sight: Sight) -> float | None:
+    """The azimuth the sight's estimated front points at. A front facing the camera although
+    none of the handle was in view is a flipped estimate (a box's back read as its front): the
+    true front is then the other way."""
+    azimuth = None if sight.front is None else _azimuth(sight.front)
+    if azimuth is not None and sight.handle == 0 and _apart(azimuth, sight.view.azimuth) < 90:
+        return (azimuth + 180.0) % 360.0
+    return azimuth
+
+
+def _toward(
+    centre: tuple[float, float, float], at: tuple[float, float, float] | None
+) -> float | None:
+    """The azimuth (degrees) from ``centre`` to ``at`` in the horizontal plane (None when
+    ``at`` is None or right above ``centre``)."""
+    if at is None:
+        return None
+    d = np.asarray(at, float) - np.asarray(centre, float)
+    return _azimuth(tuple(d)) if math.hypot(d[0], d[1]) > 1e-3 else None
+
+
+def _azimuth(direction: Sequence[float]) -> float | None:
+    """The azimuth (degrees, world xy from +x toward +y: the camera's convention) of a
+    direction, None when it is (nearly) vertical."""
+    x, y = float(direction[0]), float(direction[1])
+    if math.hypot(x, y) < 0.2 * max(1e-9, float(np.linalg.norm(direction))):
+        return None
+    return math.degrees(math.atan2(y, x)) % 360.0
+
+
+def _apart(a: float, b: float) -> float:
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
 def look_around(
-    views: Sequence[View],
+    views: Sequence[View] | View,
     see: Any,
+    looks: int = 0,
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
-    """Try ``see(view)`` for each view in turn until one is not refused: the first accepted
-    estimate (None if every view was refused) and an account of every look."""
+    """Try ``see(view)`` until one is not refused: the first accepted estimate (None if every
+    look was refused) and an account of every look. Given a list, its views in turn; given one
+    view, that first and then up to ``looks`` in all, each next one chosen by ``next_view``
+    from what the refused looks showed."""
+    fixed = list(views) if not isinstance(views, View) else None
+    first = views if isinstance(views, View) else fixed[0] if fixed else View(0.0, 45.0)
+    limit = len(fixed) if fixed is not None else max(1, looks)
     account: list[dict[str, Any]] = []
-    for view in views:
+    sights: list[Sight] = []
+    for k in range(limit):
+        view = fixed[k] if fixed is not None else first if k == 0 else next_view(first, sights)
         try:
             got = see(view)
         except EstimateRefused as exc:
             entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
             account.append({**entry, "refused": str(exc)})
+            sights.append(exc.sight if exc.sight is not None else Sight(view, (0.0, 0.0, 0.0)))
             continue
         account.append(got.summary())
         return got, account

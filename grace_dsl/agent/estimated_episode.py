@@ -10,11 +10,17 @@ moves the true one.
 Views (a decision, documented in docs/benchmarks.md): the agent looks from the protocol's
 camera first. Half of the protocol's azimuths (0-360 degrees) face the object's back, where its
 handle cannot be seen; the agent does not act on a view whose estimated front faces away from
-the camera, nor on one whose confidence is below ``MIN_CONFIDENCE``: it takes one more view from
-the opposite side (azimuth + 180 degrees, the same elevation), as a robot walks round. If that
-is refused too the episode fails with ``no_feasible_grasp`` (no grasp the agent trusts; the
-record's ``estimate`` says the estimate was refused and why). ``second_view=False`` (the bench's
-``--single-view``) refuses instead of looking again.
+the camera, nor on one showing fewer than ``MIN_PART_POINTS`` of the handle's pixels, nor on
+one whose confidence is below ``MIN_CONFIDENCE``: it walks round and looks again, up to
+``LOOKS`` looks in all, each next view chosen from what the refused ones showed
+(``estimated.next_view``: toward the face where the handle's pixels were, else the face the
+estimated front points at, else from the opposite side). If every look is refused the episode
+fails with ``no_feasible_grasp`` (no grasp the agent trusts; the record's ``estimate`` says the
+estimate was refused and why). ``looks=1`` (the bench's ``--single-view``) refuses instead of
+looking again.
+
+Every look's cloud carries a label per point (its shape, part or link: the renderer's
+segmentation), and the fit gets every pixel with its label (``estimated.labelled_cloud``).
 
 Perception estimates the real-valued parameters, the pose and the joints; the discrete ones
 (integers, choices, flags: a concept's structure, which the task parser or a VLM names with the
@@ -35,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.agent.estimated import (
+    LOOKS,
     MIN_CONFIDENCE,
     Perceived,
     View,
@@ -64,10 +71,11 @@ def estimated_episode(
     config: EpisodeConfig,
     seed: int,
     *,
-    second_view: bool = True,
     min_confidence: float = MIN_CONFIDENCE,
+    looks: int = LOOKS,
 ) -> EpisodeRecord:
-    """The episode, with the agent's view policy and confidence threshold as arguments."""
+    """The episode, with the agent's confidence threshold and its number of looks (1: the
+    protocol's view only) as arguments."""
     _check(config)
     started = time.perf_counter()
     start = start_episode(config, seed, started)
@@ -76,8 +84,8 @@ def estimated_episode(
     task, draw, ranges, true = start.task, start.draw, start.ranges, start.inst
     concept = true.concept
     first = View(draw.camera["azimuth"], draw.camera["elevation"])
-    views = [first, first.opposite()] if second_view else [first]
-    got, account = perceive_episode(true, views, seed, min_confidence)
+    hold = str(concept.joints[task.joint]["child"])  # the link the task moves
+    got, account = perceive_episode(true, first, seed, min_confidence, looks, hold)
     if got is None:
         early = _early(config, seed, task, "no_feasible_grasp", _refused(account), started,
                        draw, true)  # fmt: skip
@@ -107,19 +115,29 @@ def estimated_episode(
 
 
 def perceive_episode(
-    true: Instance, views: list[View], seed: int, min_confidence: float = MIN_CONFIDENCE
+    true: Instance,
+    first: View,
+    seed: int,
+    min_confidence: float = MIN_CONFIDENCE,
+    looks: int = LOOKS,
+    hold: str = "",
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
     """Look at the true instance (rendered by MuJoCo, no floor: the episode's world has none)
-    from each view in turn until one gives an estimate the agent accepts."""
+    from ``first``, then from views chosen from what the refused looks showed
+    (``estimated.next_view``), until one gives an estimate the agent accepts or ``looks``
+    looks were taken (``hold``: the link the task moves, which a look must show). Look k's
+    sensor noise has seed ``seed + 7919 k``."""
     scene, model, data = _scene(true)
     centre, radius = frame_of(true)
+    taken: list[View] = []
 
     def see(view: View) -> Perceived:
+        taken.append(view)
         return look(scene, model, data, 0, true.concept, view, centre, radius,
-                    seed + 7919 * views.index(view), min_confidence=min_confidence,
-                    fixed=fixed_params(true.concept, true.params))  # fmt: skip
+                    seed + 7919 * (len(taken) - 1), min_confidence=min_confidence,
+                    fixed=fixed_params(true.concept, true.params), hold=hold)  # fmt: skip
 
-    return look_around(views, see)
+    return look_around(first, see, looks)
 
 
 def estimate_errors(true: Instance, got: Perceived, joint: str) -> dict[str, Any]:
