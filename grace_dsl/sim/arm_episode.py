@@ -407,6 +407,8 @@ def execute_plan(
         world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
     aimed = goal
     track = phases.move_in
+    if plan.choice.option.mode == "hook":  # the closed fingertips go into a pocket, as the
+        world.set_fingers(0.0, at_once=True)  # flying hand's do: open, they straddle it
     touched = [False]  # an arm link (not the hand) met the object on the way in
 
     def move_in(t: float) -> np.ndarray:
