@@ -56,6 +56,13 @@ def main(argv: list[str] | None = None) -> int:
         help="keep the base where the first stage put it (the figure before bases moved)",
     )
     ap.add_argument(
+        "--like",
+        type=Path,
+        default=None,
+        help="with --fixed-base: take from this log (a run with moving bases) every episode it "
+        "ended in one stage without planning a second (the flag changes nothing there)",
+    )
+    ap.add_argument(
         "--summarize", type=Path, default=None, help="no episodes: the table of a --log file"
     )
     args = ap.parse_args(argv)
@@ -68,8 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.summarize is not None:
         records = read_log(args.summarize)
     else:
+        reuse = one_stage(read_log(args.like)) if args.like is not None and args.fixed_base else {}
         records = run_all(
-            categories, tasks, episodes, args.seed, args.log, args.workers, args.fixed_base
+            categories, tasks, episodes, args.seed, args.log, args.workers, args.fixed_base, reuse
         )
     summary = summarize(records)
     print_table(summary)
@@ -101,12 +109,14 @@ def run_all(
     log: Path | None = None,
     workers: int = 1,
     fixed_base: bool = False,
+    reuse: dict[tuple[str, str, int], EpisodeRecord] | None = None,
 ) -> list[EpisodeRecord]:
     """Every (category, task, episode), seed by seed (so that an interrupted run, its ``log``
     kept, has covered every category evenly), on ``workers`` processes with a progress bar.
-    Episodes already in ``log`` are taken from it, not run again."""
+    Episodes already in ``log`` or in ``reuse`` are taken from there, not run again."""
     jobs = [(c, t, seed + i) for i in range(episodes) for c in categories for t in tasks]
     done = {_key(r): r for r in read_log(log)} if log is not None and log.exists() else {}
+    done = {**(reuse or {}), **done}
     todo = [
         (EpisodeConfig(c, t, agent="arm"), s)  # type: ignore[arg-type]
         for c, t, s in jobs
@@ -122,6 +132,18 @@ def run_all(
     fn = run_arm_episode_fixed_base if fixed_base else None
     run_episodes(todo, fn=fn, workers=workers, warm=True, on_record=write)
     return [done[job] for job in jobs]
+
+
+def one_stage(records: list[EpisodeRecord]) -> dict[tuple[str, str, int], EpisodeRecord]:
+    """The records of a run with moving bases that a fixed base would repeat exactly: those
+    that ended after one stage (or none) without planning a second (a base moves only for a
+    later stage; a later stage that could not be planned says so, ``stage N:``, in the
+    detail)."""
+    return {k: r for k, r in ((_key(r), r) for r in records) if _single(r)}
+
+
+def _single(record: EpisodeRecord) -> bool:
+    return len(record.bases) <= 1 and not record.detail.startswith("stage ")
 
 
 def _key(record: EpisodeRecord) -> tuple[str, str, int]:
