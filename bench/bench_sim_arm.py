@@ -10,6 +10,11 @@ gripper's columns (``bench/bench_sim.py``): strict and lenient success and the f
     python bench/bench_sim_arm.py --small            # 3 categories x 2 tasks x 2 episodes
     python bench/bench_sim_arm.py --smoke            # 1 category x 1 task x 1 episode (the tests)
     python bench/bench_sim_arm.py --episodes 5 --categories Drawer Oven
+    python bench/bench_sim_arm.py --episodes 10 --workers 2 --log arm.jsonl   # resumable
+    python bench/bench_sim_arm.py --fixed-base ...   # the base never moves between stages
+
+With ``--log``, episodes already in the log are not run again (an interrupted run resumes) and
+the table covers every requested episode of the log.
 """
 
 from __future__ import annotations
@@ -20,14 +25,13 @@ import sys
 import time
 from pathlib import Path
 
-from rich.progress import Progress
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_sim import CATEGORIES, SMALL, TASKS, print_table, summarize  # noqa: E402
 
-from grace_dsl.sim.episode import run_episode  # noqa: E402
+from grace_dsl.sim.arm_episode import run_arm_episode_fixed_base  # noqa: E402
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord  # noqa: E402
+from grace_dsl.sim.runner import run_episodes  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "sim_arm.json"
@@ -42,7 +46,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--small", action="store_true", help="3 categories, 2 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode of 1 task")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
-    ap.add_argument("--log", type=Path, default=None, help="append each record here (JSON lines)")
+    ap.add_argument(
+        "--log", type=Path, default=None, help="append each record here (JSON lines); resumes"
+    )
+    ap.add_argument("--workers", type=int, default=1, help="episodes in parallel (processes)")
+    ap.add_argument(
+        "--fixed-base",
+        action="store_true",
+        help="keep the base where the first stage put it (the figure before bases moved)",
+    )
+    ap.add_argument(
+        "--like",
+        type=Path,
+        default=None,
+        help="with --fixed-base: take from this log (a run with moving bases) every episode it "
+        "ended in one stage without planning a second (the flag changes nothing there)",
+    )
     ap.add_argument(
         "--summarize", type=Path, default=None, help="no episodes: the table of a --log file"
     )
@@ -56,7 +75,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.summarize is not None:
         records = read_log(args.summarize)
     else:
-        records = run_all(categories, tasks, episodes, args.seed, args.log)
+        reuse = one_stage(read_log(args.like)) if args.like is not None and args.fixed_base else {}
+        records = run_all(
+            categories, tasks, episodes, args.seed, args.log, args.workers, args.fixed_base, reuse
+        )
     summary = summarize(records)
     print_table(summary)
     out = args.out or RESULTS
@@ -66,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             {
                 "command": " ".join(["python bench/bench_sim_arm.py", *(argv or sys.argv[1:])]),
                 "agent": "arm",
+                "fixed_base": args.fixed_base,
                 "episodes": episodes,
                 "seed": args.seed,
                 "summary": summary,
@@ -84,22 +107,47 @@ def run_all(
     episodes: int,
     seed: int,
     log: Path | None = None,
+    workers: int = 1,
+    fixed_base: bool = False,
+    reuse: dict[tuple[str, str, int], EpisodeRecord] | None = None,
 ) -> list[EpisodeRecord]:
-    """Every (category, task, episode) in a plain loop, with a progress bar; seed by seed, so
-    that an interrupted run (its ``log`` kept) has covered every category evenly."""
+    """Every (category, task, episode), seed by seed (so that an interrupted run, its ``log``
+    kept, has covered every category evenly), on ``workers`` processes with a progress bar.
+    Episodes already in ``log`` or in ``reuse`` are taken from there, not run again."""
     jobs = [(c, t, seed + i) for i in range(episodes) for c in categories for t in tasks]
-    records = []
-    with Progress() as bar:
-        task = bar.add_task("arm episodes", total=len(jobs))
-        for concept, kind, s in jobs:
-            config = EpisodeConfig(concept, kind, agent="arm")  # type: ignore[arg-type]
-            record = run_episode(config, s)
-            records.append(record)
-            if log is not None:
-                with log.open("a") as f:
-                    f.write(json.dumps(record.to_json()) + "\n")
-            bar.advance(task)
-    return records
+    done = {_key(r): r for r in read_log(log)} if log is not None and log.exists() else {}
+    done = {**(reuse or {}), **done}
+    todo = [
+        (EpisodeConfig(c, t, agent="arm"), s)  # type: ignore[arg-type]
+        for c, t, s in jobs
+        if (c, t, s) not in done
+    ]
+
+    def write(_: int, record: EpisodeRecord) -> None:
+        done[_key(record)] = record
+        if log is not None:
+            with log.open("a") as f:
+                f.write(json.dumps(record.to_json()) + "\n")
+
+    fn = run_arm_episode_fixed_base if fixed_base else None
+    run_episodes(todo, fn=fn, workers=workers, warm=True, on_record=write)
+    return [done[job] for job in jobs]
+
+
+def one_stage(records: list[EpisodeRecord]) -> dict[tuple[str, str, int], EpisodeRecord]:
+    """The records of a run with moving bases that a fixed base would repeat exactly: those
+    that ended after one stage (or none) without planning a second (a base moves only for a
+    later stage; a later stage that could not be planned says so, ``stage N:``, in the
+    detail)."""
+    return {k: r for k, r in ((_key(r), r) for r in records) if _single(r)}
+
+
+def _single(record: EpisodeRecord) -> bool:
+    return len(record.bases) <= 1 and not record.detail.startswith("stage ")
+
+
+def _key(record: EpisodeRecord) -> tuple[str, str, int]:
+    return record.config.concept, record.config.task, record.seed
 
 
 def read_log(path: Path) -> list[EpisodeRecord]:

@@ -87,8 +87,9 @@ def panda() -> Robot:
     return Robot.panda()
 
 
-def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
-    """Run one arm episode of ``config`` with ``seed``; the same pair gives the same record."""
+def run_arm_episode(config: EpisodeConfig, seed: int, *, move_base: bool = True) -> EpisodeRecord:
+    """Run one arm episode of ``config`` with ``seed``; the same pair gives the same record.
+    ``move_base`` False keeps the base where the first stage put it (the comparison figure)."""
     from grace_dsl.robot.choose import NoGraspError
 
     if config.hand != "panda":
@@ -107,16 +108,29 @@ def run_arm_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
         return _early(config, seed, task, "no_feasible_grasp", str(exc), started, draw, inst)
     except GraceError as exc:
         return _early(config, seed, task, "ik_failure", str(exc), started, draw, inst)
-    staged = execute_stages(inst, task, plan, config.max_seconds, seed)
+    staged = execute_stages(inst, task, plan, config.max_seconds, seed, move_base=move_base)
     record = outcome_record(
         config, seed, task, draw, inst, staged.outcome, plan.choice.option, started
     )
+    record = replace(record, bases=[_base_xyzyaw(b) for b in staged.bases])
     if len(staged.options) > 1:
         record = replace(record, option=" + ".join(staged.options))
     if not record.strict and staged.unplanned:  # the arm stopped because no stage planned
         reason = "no_feasible_grasp" if staged.no_grasp else "ik_failure"
         record = replace(record, reason=reason, detail=staged.unplanned)
     return record
+
+
+def run_arm_episode_fixed_base(config: EpisodeConfig, seed: int) -> EpisodeRecord:
+    """``run_arm_episode`` with the base kept where the first stage put it (a module-level
+    function, so that a process pool can run it by name)."""
+    return run_arm_episode(config, seed, move_base=False)
+
+
+def _base_xyzyaw(base: np.ndarray) -> list[float]:
+    """A base pose as the record keeps it: x, y, z (m) and yaw (rad), rounded to 0.1 mm."""
+    yaw = math.atan2(float(base[1, 0]), float(base[0, 0]))
+    return [round(float(v), 4) for v in (*base[:3, 3], yaw)]
 
 
 def robot_base(robot: Robot, inst: Instance, action: str) -> np.ndarray:
@@ -165,11 +179,7 @@ def plan_episode(
     from grace_dsl.robot.placement import _centred, path_bases, placements, plan_placed
 
     robot = panda()
-    lo, hi = inst.joint_limits()[task.joint]
-    start = float(inst.joints[task.joint])
-    span = hi - lo
-    to = min(max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi)
-    to = to if task.sign > 0 else lo
+    to = _plan_to(inst, task)
     try:
         if base is None:
             first = robot_base(robot, inst, task.action)
@@ -187,6 +197,55 @@ def plan_episode(
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
         return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+
+
+def _plan_to(inst: Instance, task: TaskAction) -> float:
+    """Where a plan for ``task`` aims from the object as it stands: an open to ``OPEN_TO`` of
+    the range (at least a tenth further than it is), a close to the closed end."""
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    span = hi - lo
+    to = min(max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi)
+    return to if task.sign > 0 else lo
+
+
+def next_stage(
+    inst: Instance,
+    task: TaskAction,
+    seed: int,
+    base: np.ndarray,
+    here: np.ndarray,
+    *,
+    move_base: bool = True,
+) -> ActionPlan:
+    """The plan of a later stage, the object at its measured joint value: the rest of the
+    action from ``base`` with the arm at ``here`` when it plans all the way; else, with
+    ``move_base``, from a base placed anew for the rest of the path (as for the first stage:
+    ``path_bases`` scores bases on the hand's remaining path; the arm starts at home, as it
+    would after the base drove there, which is not simulated); else (or when no placement
+    plans at all) part of the way from ``base``. A second grasp of a wide door's handle from
+    the first stage's base meets the same workspace edge the first did."""
+    from grace_dsl.robot.act import ActionPlanningError, plan_action
+
+    robot = panda()
+    try:
+        return plan_action(
+            robot,
+            inst,
+            task.action,
+            _plan_to(inst, task),
+            base=base,
+            q_start=here,
+            seed=seed,
+            time_limit=LATER,
+        )
+    except ActionPlanningError as kept:
+        if move_base:
+            try:
+                return plan_episode(inst, task, seed)
+            except GraceError:
+                pass
+        return _plan_partial(robot, inst, task, kept, base, here, seed)
 
 
 def _plan_partial(
@@ -249,15 +308,27 @@ class Staged:
     options: tuple[str, ...]
     unplanned: str = ""
     no_grasp: bool = False
+    bases: tuple[np.ndarray, ...] = ()  # each executed stage's base (world pose)
 
 
 def execute_stages(
-    inst: Instance, task: TaskAction, plan: ActionPlan, budget: float, seed: int
+    inst: Instance,
+    task: TaskAction,
+    plan: ActionPlan,
+    budget: float,
+    seed: int,
+    *,
+    move_base: bool = True,
 ) -> Staged:
     """Execute ``plan`` and, while the part is short of the task's goal, plan again from the
-    measured state (same base, the arm where it backed off to) and execute that, up to
-    ``STAGES`` plans: as a person closes a wide door, follow it as far as the arm reaches, let
-    go, take it again nearer. ``budget`` simulated seconds of interaction over all stages."""
+    measured state (``next_stage``: the same base when the rest plans from there, else with
+    ``move_base`` a base placed for the rest of the path) and execute that, up to ``STAGES``
+    plans: as a person closes a wide door, follow it as far as the arm reaches, let go, step
+    nearer, take it again. ``budget`` simulated seconds of interaction over all stages.
+
+    A base that moves is a mobile manipulator's drive, not simulated: the world is built again
+    with the object at its measured joint value (at rest: the hand let go and backed off) and
+    the arm at the new plan's start."""
     from grace_dsl.robot.choose import NoGraspError
 
     robot = panda()
@@ -265,6 +336,7 @@ def execute_stages(
     lo, hi = inst.joint_limits()[task.joint]
     span = hi - lo
     options = [f"{plan.choice.option.grasp} ({plan.choice.option.mode})"]
+    bases = [np.asarray(plan.base, float)]
     left = budget
     for stage in range(STAGES):
         began = world.time
@@ -278,15 +350,18 @@ def execute_stages(
         if moved < 0.01 * span or left <= 0.0:
             break
         inst = inst.with_joints({task.joint: q})
+        here = np.clip(world.arm_q(), robot.lower, robot.upper)  # a motor may overshoot
         try:
-            here = np.clip(world.arm_q(), robot.lower, robot.upper)  # a motor may overshoot
-            plan = plan_episode(inst, task, seed, base=plan.base, q_start=here)
+            plan = next_stage(inst, task, seed, bases[-1], here, move_base=move_base)
         except NoGraspError as exc:
-            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}", True)
+            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}", True, tuple(bases))
         except GraceError as exc:
-            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}")
+            return Staged(outcome, tuple(options), f"stage {stage + 2}: {exc}", False, tuple(bases))
+        if not np.allclose(plan.base, bases[-1]) or not np.allclose(plan.q[0], here):
+            world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
         options.append(f"{plan.choice.option.grasp} ({plan.choice.option.mode})")
-    return Staged(outcome, tuple(options))
+        bases.append(np.asarray(plan.base, float))
+    return Staged(outcome, tuple(options), bases=tuple(bases))
 
 
 @dataclass(frozen=True)
@@ -332,6 +407,8 @@ def execute_plan(
         world = ArmWorld.build(inst, plan.base, plan.q[0], robot.gripper)
     aimed = goal
     track = phases.move_in
+    if plan.choice.option.mode == "hook":  # the closed fingertips go into a pocket, as the
+        world.set_fingers(0.0, at_once=True)  # flying hand's do: open, they straddle it
     touched = [False]  # an arm link (not the hand) met the object on the way in
 
     def move_in(t: float) -> np.ndarray:

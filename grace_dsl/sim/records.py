@@ -68,6 +68,9 @@ class EpisodeRecord:
     #: estimated mode: the agent's looks (view, confidence, residual), the estimate's errors
     #: against the truth (parameters, pose, joint) and whether it was refused; {} in oracle mode
     estimate: dict[str, Any] = field(default_factory=dict)
+    #: arm mode: the base's world pose (x, y, z m, yaw rad) for each stage executed, in order (a
+    #: base that moved between stages shows as a second, different entry); [] for the flying hand
+    bases: list[list[float]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)

@@ -31,6 +31,7 @@ from grace_dsl.sim.records import FAILURE_REASONS, EpisodeConfig, EpisodeRecord,
 
 EpisodeFn = Callable[[EpisodeConfig, int], EpisodeRecord]
 Job = tuple[EpisodeConfig, int]
+Advance = Callable[[int, EpisodeRecord], None]  # one more episode done: its index and record
 
 #: The reason given to an episode whose own code raised; its detail starts with ``RAISED`` and
 #: holds the exception and the last frames of its traceback.
@@ -84,6 +85,7 @@ def run_episodes(
     ray_address: str | None = None,
     progress: bool = True,
     warm: bool | None = None,
+    on_record: Callable[[int, EpisodeRecord], None] | None = None,
 ) -> list[EpisodeRecord]:
     """One record per ``(config, seed)``, in the order given.
 
@@ -94,6 +96,7 @@ def run_episodes(
     if Ray is already initialised in this process, that instance is used as it is. ``warm``
     (default: only for the real episode) loads the compiled library once here and once in each
     worker process before any episode, so no episode pays for compiling or loading it.
+    ``on_record(index, record)`` is called in this process as each episode finishes.
     """
     jobs = list(configs_and_seeds)
     if workers < 1:
@@ -102,14 +105,15 @@ def run_episodes(
     warm = fn is None if warm is None else warm
     if warm:
         _warm_once()  # builds the cache once, before workers race to build it
-    with _progress_bar(len(jobs), progress) as advance:
+    with _progress_bar(len(jobs), progress) as bar:
+        advance = _reporting(bar, on_record)
         if ray_address is not None:
             return _run_ray(jobs, episode, workers, ray_address, warm, advance)
         if workers == 1 or len(jobs) <= 1:
             out = []
-            for config, seed in jobs:
+            for i, (config, seed) in enumerate(jobs):
                 out.append(guarded(episode, config, seed))
-                advance()
+                advance(i, out[-1])
             return out
         return _run_pool(jobs, episode, workers, warm, advance)
 
@@ -210,7 +214,7 @@ def _pool_task(fn: EpisodeFn, config: EpisodeConfig, seed: int, warm: bool) -> E
 
 
 def _run_pool(
-    jobs: list[Job], fn: EpisodeFn, workers: int, warm: bool, advance: Callable[[], None]
+    jobs: list[Job], fn: EpisodeFn, workers: int, warm: bool, advance: Advance
 ) -> list[EpisodeRecord]:
     """A spawn pool (no forked MuJoCo or GL state); a worker that dies costs its episodes."""
     out: list[EpisodeRecord | None] = [None] * len(jobs)
@@ -226,8 +230,8 @@ def _run_pool(
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 i = futures[future]
-                out[i] = _collect(future, *jobs[i])
-                advance()
+                out[i] = record = _collect(future, *jobs[i])
+                advance(i, record)
     finally:  # on Ctrl-C, episodes not started are dropped rather than run to the end
         pool.shutdown(wait=True, cancel_futures=True)
     return [r for r in out if r is not None]
@@ -251,7 +255,7 @@ def _run_ray(
     workers: int,
     address: str,
     warm: bool,
-    advance: Callable[[], None],
+    advance: Advance,
 ) -> list[EpisodeRecord]:
     """Each episode a Ray task of one CPU; results placed by index as they finish."""
     ray = _import_ray()
@@ -276,10 +280,11 @@ def _run_ray(
             for ref in done:
                 i = refs[ref]
                 try:
-                    out[i] = ray.get(ref)
+                    record = ray.get(ref)
                 except Exception as exc:  # a dead worker, a lost node: RayError and kin
-                    out[i] = failure_record(*jobs[i], CRASH_REASON, RAISED + _summary(exc))
-                advance()
+                    record = failure_record(*jobs[i], CRASH_REASON, RAISED + _summary(exc))
+                out[i] = record
+                advance(i, record)
         return [r for r in out if r is not None]
     finally:
         if started:
@@ -292,6 +297,18 @@ def _import_ray() -> Any:
     except ImportError as exc:
         raise RunnerError("--ray needs Ray: install it with `pip install -e .[ray]`") from exc
     return ray
+
+
+def _reporting(bar: Callable[[], None], on_record: Advance | None) -> Advance:
+    """Advance the bar and hand each finished record to ``on_record`` (a log that an
+    interrupted run keeps) as it comes, not when the last one does."""
+
+    def advance(index: int, record: EpisodeRecord) -> None:
+        if on_record is not None:
+            on_record(index, record)
+        bar()
+
+    return advance
 
 
 @contextmanager

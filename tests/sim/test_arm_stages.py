@@ -45,3 +45,23 @@ def test_a_close_cut_short_is_taken_further_by_a_second_stage(lib, monkeypatch) 
     assert staged.outcome.arrived and not staged.outcome.slipped
     assert len(staged.options) == 2  # the second stage was planned and executed
     assert staged.outcome.q_final < 0.6 - 0.05  # past where the first plan ended
+
+
+@pytest.mark.slow
+def test_a_later_stage_places_the_base_for_the_rest_of_the_path(lib) -> None:  # type: ignore[no-untyped-def]
+    """A refrigerator door closed from wide open to 0.63 rad by a first stage: from the base
+    placed for the whole close, IK tracks under half of the rest of the path (the workspace's
+    edge); the base placed for the rest (what ``next_stage`` plans from when the old base
+    cannot) stands elsewhere and IK tracks all of it."""
+    from grace_dsl.robot.placement import hand_paths, path_bases, reach_score
+
+    robot = panda()
+    inst = lib["Refrigerator"].instantiate(pose=Z_UP)
+    wide = inst.with_joints({"hinge": inst.joint_limits()["hinge"][1]})
+    first = path_bases(robot, wide, "close", 0.0, robot_base(robot, wide, "close"))[0]
+    rest = inst.with_joints({"hinge": 0.63})
+    paths = hand_paths(rest, "close", 0.0)
+    chosen = path_bases(robot, rest, "close", 0.0, robot_base(robot, rest, "close"))[0]
+    assert float(np.linalg.norm(chosen[:2, 3] - first[:2, 3])) > 0.3
+    assert max(reach_score(robot, p, first) for p in paths) < 0.5
+    assert max(reach_score(robot, p, chosen) for p in paths) == 1.0

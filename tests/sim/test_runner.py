@@ -66,6 +66,21 @@ def test_inline_keeps_order_and_is_deterministic() -> None:
     assert _strip_pid(a) == _strip_pid(b)
 
 
+def test_each_record_is_handed_over_as_it_finishes() -> None:
+    """``on_record`` sees every record once, with its index, before the run returns (what a
+    resumable log is written from)."""
+    seen: list[tuple[int, EpisodeRecord]] = []
+    out = run_episodes(
+        JOBS,
+        fn=raising_episode,
+        workers=1,
+        progress=False,
+        on_record=lambda i, r: seen.append((i, r)),
+    )
+    assert [i for i, _ in seen] == list(range(len(JOBS)))
+    assert [r for _, r in seen] == out
+
+
 @pytest.mark.slow
 def test_pool_of_two_matches_inline_in_order_raising_included() -> None:
     """One pool (spawning workers costs seconds): order, equality with inline, and raises."""
