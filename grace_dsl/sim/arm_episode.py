@@ -33,7 +33,8 @@ from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.arm import ArmWorld
+from grace_dsl.runtime.manipulation import CLEARANCE
+from grace_dsl.sim.arm import FINGER_SPEED, ArmWorld
 from grace_dsl.sim.arm_control import HandImpedance, JointTrajectory, track_torque
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
 from grace_dsl.sim.episode import (
@@ -381,14 +382,42 @@ def _pinch_in(
     back = grasp.copy()
     back[:3, 3] += grasp[:3, 2] * plan.standoff
     gripper = panda().gripper
-    deep = deeper(inst, gripper, back, (gripper.max_width, gripper.max_width))
-    start, posture, t0 = world.hand_pose(), world.arm_q(), world.time
+    start, posture = world.hand_pose(), world.arm_q()
+    widths = _narrow(world, inst, plan, hand, start, posture)
+    deep = deeper(inst, gripper, back, widths)
+    t0 = world.time
 
     def move(t: float) -> np.ndarray:
         return hand.torque(world, blend(start, deep, (t - t0) / PINCH_IN_TIME), posture)
 
     _run(world, PINCH_IN_TIME + SETTLE / 2, move, absolute=True)
     return deep
+
+
+def _narrow(
+    world: ArmWorld,
+    inst: Instance,
+    plan: ActionPlan,
+    hand: HandImpedance,
+    pose: np.ndarray,
+    posture: np.ndarray,
+) -> tuple[float, float]:
+    """Close the open hand to the part's width plus the flying hand's clearance where it stands
+    (the planner's pose, clear of the object), as the flying hand comes in: a finger open to
+    its full 80 mm under a laptop's lid lies under the base and would close on base and lid.
+    Returns the openings (before, after closing) the pinch goes in with."""
+    width = inst.grasp_width(plan.choice.option.grasp)
+    full = panda().gripper.max_width
+    if width is None:
+        return full, full
+    open_to = min(float(width) + 2 * CLEARANCE, full)
+    world.set_fingers(open_to)
+    _run(
+        world,
+        (full - open_to) / 2 / FINGER_SPEED + SETTLE / 3,
+        lambda t: hand.torque(world, pose, posture),
+    )
+    return open_to, float(width)
 
 
 def _posture(phases: _Phases, value: float) -> np.ndarray:
