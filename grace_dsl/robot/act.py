@@ -152,7 +152,7 @@ def plan_action(
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
     found, rejected = grasp_candidates(
-        robot, inst, action, base=base_m, seed=seed, obstacles=obstacles, grasps=grasps
+        robot, inst, action, base=base_m, seed=seed, obstacles=obstacles, grasps=grasps, to=to
     )
     clock.append(("grasp", time.perf_counter()))
     full = collision_scene(robot, inst, base=base_m, obstacles=obstacles)

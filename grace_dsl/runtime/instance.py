@@ -486,9 +486,16 @@ class Instance:
         gripper: Gripper | None = None,
         samples: int = 32,
         reference: Any = None,
+        to: float | None = None,
     ) -> tuple[Option, ...]:
         """The manipulation functions of ``action`` judged for ``gripper`` (default the Panda),
-        best first: see :func:`grace_dsl.runtime.manipulation.rank`."""
+        best first: see :func:`grace_dsl.runtime.manipulation.rank`. ``to``: judge the follow
+        path only as far as this joint value (default the end of the range the action drives
+        toward): a hand that carries a lid part of the way, then takes it again otherwise."""
+        if to is not None:
+            to = as_number("to", to)
+            if not math.isfinite(to):
+                raise ParameterError(f"rank's to must be a finite joint value, not {to!r}")
         if gripper is None:
             gripper = Gripper.panda()
         elif not isinstance(gripper, Gripper):
@@ -497,7 +504,7 @@ class Instance:
             )
         samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
         ref = None if reference is None else as_rotation(reference)
-        return rank(self, action, gripper, samples, ref)
+        return rank(self, action, gripper, samples, ref, to)
 
     def follow(
         self,

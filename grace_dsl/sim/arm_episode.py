@@ -72,6 +72,8 @@ STAGES = 3
 # 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
 LATER = 6.0
 PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
+# Fractions of the way a stage is planned to when no grasp carries the part all the way
+SHORTER = (0.5,)
 PATH_FIRST = 3  # base poses scored on the hand's path tried (interleaved with the fixed shifts)
 OPEN_ENOUGH = 0.55  # fraction of the range past which an open stops staging (strict: half)
 CLOSE_ENOUGH = 0.025  # fraction of the range within which a close stops staging (strict: 5 %)
@@ -152,25 +154,33 @@ def plan_episode(
     *,
     base: np.ndarray | None = None,
     q_start: np.ndarray | None = None,
+    to: float | None = None,
 ) -> ActionPlan:
     """The robot layer's plan for the task from where the object stands: an open to
     ``OPEN_TO`` of the range, a close to the closed end; where the arm cannot get that far,
     to ``REPLAN_AT`` of how far it can, when that moves the part ``MIN_STAGE`` of the range
-    (the next stage goes on from there).
+    (the next stage goes on from there); where no grasp the arm can take carries the part to
+    the end at all, ``SHORTER`` of the way (``_plan_shorter``). ``to``: plan to this joint
+    value instead (and no shorter).
 
     Without ``base`` (the first stage) the base is placed for the object as it stands and
     ``plan_placed`` may move it; a partial plan is made from the placement that got furthest.
     With ``base`` (a later stage: the base stands where it stood) the arm starts at ``q_start``.
     """
     from grace_dsl.robot.act import ActionPlanningError, plan_action
+    from grace_dsl.robot.choose import NoGraspError
     from grace_dsl.robot.placement import _centred, path_bases, placements, plan_placed
 
     robot = panda()
     lo, hi = inst.joint_limits()[task.joint]
     start = float(inst.joints[task.joint])
     span = hi - lo
-    to = min(max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi)
-    to = to if task.sign > 0 else lo
+    shorter = to is None
+    if to is None:
+        to = min(
+            max(lo + OPEN_TO * span, start + 0.1 * span), max(lo + FOLLOW_TO * span, start), hi
+        )
+        to = to if task.sign > 0 else lo
     try:
         if base is None:
             first = robot_base(robot, inst, task.action)
@@ -188,6 +198,41 @@ def plan_episode(
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
         return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+    except NoGraspError:
+        if not shorter:
+            raise
+        return _plan_shorter(inst, task, to, seed, base, q_start)
+
+
+def _plan_shorter(
+    inst: Instance,
+    task: TaskAction,
+    to: float,
+    seed: int,
+    base: np.ndarray | None,
+    q_start: np.ndarray | None,
+) -> ActionPlan:
+    """A stage to ``SHORTER`` of the way to ``to``, when no grasp the arm can take carries the
+    part all the way: a wide-open laptop lid's front edge is out of reach, and a side edge's
+    pinch cannot lower it onto the base (the lower finger would end in the base), but carries
+    it half way down, where the next stage takes the front edge. Raises ``NoGraspError`` when
+    no such stage plans either."""
+    from grace_dsl.robot.choose import NoGraspError
+
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    failure: GraceError | None = None
+    for fraction in SHORTER:
+        partial = start + fraction * (to - start)
+        if abs(partial - start) < MIN_STAGE * (hi - lo):
+            break
+        try:
+            return plan_episode(inst, task, seed, base=base, q_start=q_start, to=partial)
+        except GraceError as exc:
+            failure = failure or exc
+    raise failure or NoGraspError(
+        f"no usable grasp for {task.action} of {inst.concept.name} from {start:.3g}"
+    )
 
 
 def _plan_partial(
