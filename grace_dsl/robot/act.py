@@ -44,6 +44,7 @@ from grace_dsl.robot.plan import (
 )
 from grace_dsl.robot.timing import Trajectory, time_optimal
 from grace_dsl.runtime.errors import GraceError
+from grace_dsl.runtime.manipulation import CLEARANCE
 
 FloatArray = np.ndarray
 MAX_JOINT_STEP = 0.2  # radians between two tracked samples
@@ -60,6 +61,9 @@ FINGER_ALLOWANCE = 0.005  # metres the fingers may press into the link they hold
 # metres a pinch's closed fingers keep off the links they do not hold, where the hand can stop
 # that much further short (a lip as deep as the pads reach: their ends on the body below it)
 CLOSED_CLEAR = 0.0005
+# metres a pinch's fingers open beyond the part to let go (the flying hand's clearance on each
+# side, as it comes in): opened fully, the lower finger under a lid nearly shut meets the body
+RELEASE = 2 * CLEARANCE
 FINGERS = ("panda_leftfinger", "panda_rightfinger")
 GRIP_TIME = 0.5  # seconds the hand rests while the gripper closes or opens
 PHASES = ("approach", "insert", "interact", "retreat")
@@ -170,7 +174,9 @@ def plan_action(
             obstacles=obstacles,
         )
         path, values, to_value = _action_path(inst, action, choice.ik.grasp_pose, to, steps)
-        gripping = _closed_scene(robot, inst, choice, base_m, link, allowance, obstacles) or held
+        hand = (robot, inst, choice, base_m, link, allowance, obstacles)
+        gripping = _closed_scene(*hand) or held
+        releasing = _closed_scene(*hand, RELEASE) or held
         times: list[tuple[str, float]] = []
         try:
             parts, standoff = _phases(
@@ -178,7 +184,7 @@ def plan_action(
                 inst,
                 choice,
                 full,
-                (held, gripping),
+                (held, gripping, releasing),
                 base_m,
                 q0,
                 path,
@@ -231,7 +237,7 @@ def _phases(
     inst: Any,
     choice: GraspChoice,
     full: CollisionScene,
-    scenes: tuple[CollisionScene, CollisionScene],
+    scenes: tuple[CollisionScene, CollisionScene, CollisionScene],
     base: FloatArray,
     q0: FloatArray,
     path: FloatArray,
@@ -243,15 +249,16 @@ def _phases(
 ) -> tuple[list[tuple[FloatArray, FloatArray, _Object]], float]:
     """The four phases' joint waypoints, object joint values and collision scenes, checked
     (``clock`` gets the times the tracked phases and the approach were done), and the standoff.
-    ``scenes``: the hand open on the grasped link (moving in, backing out) and as it holds it
-    during the interaction (a pinch's fingers closed on the part).
+    ``scenes``: the hand open on the grasped link (moving in), as it holds it during the
+    interaction (a pinch's fingers closed on the part) and as it lets go (a pinch's fingers
+    opened ``RELEASE`` wider than the part, backing out).
 
     The cheap, decisive part first: from the grasp posture, the insert tracked backwards to the
     pre-grasp pose, then the interaction and the retreat; only then the approach (OMPL) from
     ``q0`` to the pre-grasp configuration the insert started from."""
     to_base = np.linalg.inv(base)
     start_value = float(inst.joints[joint]) if joint is not None else 0.0
-    held, gripping = scenes
+    held, gripping, releasing = scenes
     moving = _Object(held, inst, joint)
     grasp = to_base @ choice.ik.grasp_pose
     holding = _Object(gripping, inst, joint)
@@ -272,7 +279,8 @@ def _phases(
     except ActionPlanningError as exc:  # the object was moved all the way: say how far
         exc.value = float(held_values[-1]) if joint is not None else None
         raise
-    _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
+    letting_go = _Object(releasing, inst, joint)
+    _check(letting_go, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
         approach = plan_path(full, q0, insert[0], time_limit=time_limit, seed=seed)
@@ -285,7 +293,7 @@ def _phases(
         (approach, np.full(len(approach), start_value), _Object(full, inst, None)),
         (insert, np.full(len(insert), start_value), moving),
         (interact, held_values, holding),
-        (retreat, np.full(len(retreat), held_values[-1]), moving),
+        (retreat, np.full(len(retreat), held_values[-1]), letting_go),
     ], off
 
 
@@ -297,18 +305,20 @@ def _closed_scene(
     link: str,
     allowance: float,
     obstacles: Sequence[Any],
+    wider: float = 0.0,
 ) -> CollisionScene | None:
-    """The scene of a Panda whose fingers have closed on the part for a pinch, as they do before
-    the interaction: a thin lid's open fingers straddle the body under it, and the lower one,
-    lifted with the lid, would seem to run into that body while the closed one stays under the
-    lid. None when the hand stays open (hooks and pushes) or is not the Panda's."""
+    """The scene of a Panda whose fingers have closed on the part for a pinch (``wider`` metres
+    more apart), as they do before the interaction: a thin lid's open fingers straddle the body
+    under it, and the lower one, lifted with the lid, would seem to run into that body while the
+    closed one stays under the lid. None when the hand stays open (hooks and pushes), would be
+    open fully, or is not the Panda's."""
     if choice.option.mode != "pinch" or robot.name != "panda":
         return None
     width = inst.grasp_width(choice.option.grasp)
-    if width is None or not 0.0 <= float(width) < robot.gripper.max_width:
+    if width is None or not 0.0 <= float(width) + wider < robot.gripper.max_width:
         return None
     return collision_scene(
-        _closed_panda(round(float(width), 4)),
+        _closed_panda(round(float(width) + wider, 4)),
         inst,
         base=base,
         touching=[(f, link) for f in FINGERS],

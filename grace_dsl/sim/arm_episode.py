@@ -414,7 +414,17 @@ def execute_plan(
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     hold = follower.pose_at(goal) if task.sign < 0 and not slipped and not partial else None
-    return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold)
+    release = _release(inst, plan) if phases.pinch else None
+    return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold, release=release)
+
+
+def _release(inst: Instance, plan: ActionPlan) -> float | None:
+    """How far a pinch opens to let go, as the planner backed it out (``act.RELEASE`` wider
+    than the part; None: fully)."""
+    from grace_dsl.robot.act import RELEASE
+
+    width = inst.grasp_width(plan.choice.option.grasp)
+    return None if width is None else float(width) + RELEASE
 
 
 def _pinch_in(
@@ -528,15 +538,18 @@ def _finish(
     unstable: bool = False,
     hand: HandImpedance | None = None,
     hold: np.ndarray | None = None,
+    release: float | None = None,
 ) -> Outcome:
-    """Let go (at ``hold``, else where the hand is), back off along the approach axis and
-    settle; the joint value after that is the episode's result."""
+    """Let go (at ``hold``, else where the hand is; opening to ``release``, else fully, and
+    fully once backed off), back off along the approach axis and settle; the joint value after
+    that is the episode's result."""
     if not unstable:
         hand = hand or HandImpedance()
         posture = world.arm_q()
         hold = world.hand_pose() if hold is None else hold
         _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
-        world.set_fingers(world.hand.finger_travel * 2)
+        full = world.hand.finger_travel * 2
+        world.set_fingers(full if release is None else min(release, full))
         _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
         back = hold.copy()
         back[:3, 3] -= hold[:3, 2] * RETREAT
@@ -546,6 +559,7 @@ def _finish(
             return hand.torque(world, blend(hold, back, (t - t0) / SETTLE), world.arm_q())
 
         _run(world, 2 * SETTLE, retreat, absolute=True)
+        world.set_fingers(full)
     q = world.q(task.joint)
     return Outcome(
         q if np.isfinite(q) else float("nan"),
