@@ -143,6 +143,7 @@ def plan_action(
     candidates: int = CANDIDATES,
     obstacles: Sequence[Any] = (),
     grasps: Sequence[str] | None = None,
+    also: Sequence[str] = (),
 ) -> ActionPlan:
     """The trajectory that performs ``action`` on ``inst`` to joint value ``to`` (default the
     end of the joint's range the action drives toward; for an action that moves no joint, a
@@ -151,12 +152,20 @@ def plan_action(
     :class:`ActionPlanningError` (or ``NoGraspError``) with the reason of the candidate that got
     furthest when this base placement cannot do it. ``obstacles``: the other objects of a room
     (posed instances that stand still), checked in every phase; ``grasps``: only these options
-    of ``inst.rank`` (default all)."""
+    of ``inst.rank`` (default all); ``also``: grasps tried besides the action's."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
     found, rejected = grasp_candidates(
-        robot, inst, action, base=base_m, seed=seed, obstacles=obstacles, grasps=grasps, to=to
+        robot,
+        inst,
+        action,
+        base=base_m,
+        seed=seed,
+        obstacles=obstacles,
+        grasps=grasps,
+        to=to,
+        also=also,
     )
     clock.append(("grasp", time.perf_counter()))
     full = collision_scene(robot, inst, base=base_m, obstacles=obstacles)

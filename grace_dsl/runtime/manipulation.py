@@ -104,13 +104,17 @@ def rank(
     samples: int = 32,
     reference: Any = None,
     to: float | None = None,
+    also: Sequence[str] = (),
 ) -> tuple[Option, ...]:
     """Every manipulation function of ``action``, best first (see the module docstring); the
-    follow path judged as far as joint value ``to`` (default the end the action drives to)."""
+    follow path judged as far as joint value ``to`` (default the end the action drives to);
+    ``also``: grasps judged besides those the action names."""
     spec = inst._action_spec(action)
     samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
     ctx = _Context(inst, spec, gripper, reference, to)
-    options = [_judge_in(ctx, g, samples) for g in candidates(inst, spec)]
+    names = candidates(inst, spec)
+    names += [g for g in also if g not in names and g in inst.grasp_names]
+    options = [_judge_in(ctx, g, samples) for g in names]
     return tuple(sorted(options, key=Option.sort_key))
 
 

@@ -155,13 +155,14 @@ def plan_episode(
     base: np.ndarray | None = None,
     q_start: np.ndarray | None = None,
     to: float | None = None,
+    also: tuple[str, ...] = (),
 ) -> ActionPlan:
     """The robot layer's plan for the task from where the object stands: an open to
     ``OPEN_TO`` of the range, a close to the closed end; where the arm cannot get that far,
     to ``REPLAN_AT`` of how far it can, when that moves the part ``MIN_STAGE`` of the range
     (the next stage goes on from there); where no grasp the arm can take carries the part to
     the end at all, ``SHORTER`` of the way (``_plan_shorter``). ``to``: plan to this joint
-    value instead (and no shorter).
+    value instead (and no shorter); ``also``: grasps tried besides the action's.
 
     Without ``base`` (the first stage) the base is placed for the object as it stands and
     ``plan_placed`` may move it; a partial plan is made from the placement that got furthest.
@@ -190,14 +191,22 @@ def plan_episode(
             fixed[1:1] = [centred] if centred is not None else []
             poses = _interleave(scored[:PATH_FIRST], fixed, PLACEMENTS)
             return plan_placed(
-                robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses
+                robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses, also=also
             ).plan
         return plan_action(
-            robot, inst, task.action, to, base=base, q_start=q_start, seed=seed, time_limit=LATER
+            robot,
+            inst,
+            task.action,
+            to,
+            base=base,
+            q_start=q_start,
+            seed=seed,
+            time_limit=LATER,
+            also=also,
         )
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
-        return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+        return _plan_partial(robot, inst, task, exc, where, q_start, seed, also)
     except NoGraspError:
         if not shorter:
             raise
@@ -212,11 +221,11 @@ def _plan_shorter(
     base: np.ndarray | None,
     q_start: np.ndarray | None,
 ) -> ActionPlan:
-    """A stage to ``SHORTER`` of the way to ``to``, when no grasp the arm can take carries the
-    part all the way: a wide-open laptop lid's front edge is out of reach, and a side edge's
-    pinch cannot lower it onto the base (the lower finger would end in the base), but carries
-    it half way down, where the next stage takes the front edge. Raises ``NoGraspError`` when
-    no such stage plans either."""
+    """A stage to ``SHORTER`` of the way to ``to``, the other grasps on the part the action
+    moves tried too (``_link_grasps``), when no grasp the arm can take carries the part all the
+    way: a wide-open laptop lid's front edge is out of reach from anywhere, its side edge is
+    not, and the next stage takes the front edge half way down. Raises the stage's failure
+    when none plans either."""
     from grace_dsl.robot.choose import NoGraspError
 
     lo, hi = inst.joint_limits()[task.joint]
@@ -227,11 +236,33 @@ def _plan_shorter(
         if abs(partial - start) < MIN_STAGE * (hi - lo):
             break
         try:
-            return plan_episode(inst, task, seed, base=base, q_start=q_start, to=partial)
+            return plan_episode(
+                inst,
+                task,
+                seed,
+                base=base,
+                q_start=q_start,
+                to=partial,
+                also=_link_grasps(inst, task.action),
+            )
         except GraceError as exc:
             failure = failure or exc
     raise failure or NoGraspError(
         f"no usable grasp for {task.action} of {inst.concept.name} from {start:.3g}"
+    )
+
+
+def _link_grasps(inst: Instance, action: str) -> tuple[str, ...]:
+    """The grasps on the link ``action`` moves that it does not name: ways to hold the part
+    that the action's own do not list (a lid's side edges, which a flying hand, choosing by
+    rank alone, would take even where they hold less than the front edge)."""
+    spec = inst.concept.actions[action]
+    if spec.joint is None:
+        return ()
+    child = inst.concept.joints[spec.joint].child
+    using = set(spec.using)
+    return tuple(
+        g for g in inst.grasp_names if g not in using and inst.concept.grasps[g].link == child
     )
 
 
@@ -243,6 +274,7 @@ def _plan_partial(
     base: np.ndarray | None,
     q_start: np.ndarray | None,
     seed: int,
+    also: tuple[str, ...] = (),
 ) -> ActionPlan:
     """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
     earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
@@ -269,6 +301,7 @@ def _plan_partial(
                 q_start=q_start,
                 seed=seed,
                 time_limit=LATER,
+                also=also,
             )
         except ActionPlanningError as exc:
             failure = exc
