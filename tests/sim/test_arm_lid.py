@@ -19,24 +19,31 @@ FRONT = ("edge.pinch", "edge.push_face")
 def test_a_wide_open_lid_is_pinched_by_its_side_edges(lib, name: str) -> None:  # type: ignore[no-untyped-def]
     """Wide open, the side edges' pinch (the fingertips 1 mm in, the lower finger beside the
     body below, whose sides the lid's are flush with) is feasible for the Panda all the way
-    shut, and as far as half way (rank judging the path to ``to``); shut, its pads stay out of
-    the body (as eacc verify checks)."""
+    shut, and as far as half way (rank judging the path to ``to``), when asked for (``also``):
+    the actions name only the front edge, which a flying hand, choosing by rank, keeps to."""
     concept = lib[name]
     top = concept.instantiate().joint_limits()["hinge"][1]
     inst = concept.instantiate(pose=Z_UP, joints={"hinge": top})
-    whole = {o.grasp: o for o in inst.rank("close", Gripper.panda(), samples=8)}
-    half = {o.grasp: o for o in inst.rank("close", Gripper.panda(), samples=8, to=top / 2)}
+    plain = inst.rank("close", Gripper.panda(), samples=8)
+    assert {o.grasp for o in plain} == set(FRONT)
+    whole = {o.grasp: o for o in inst.rank("close", Gripper.panda(), samples=8, also=SIDES)}
+    half = {
+        o.grasp: o for o in inst.rank("close", Gripper.panda(), samples=8, to=top / 2, also=SIDES)
+    }
     for side in SIDES:
         assert whole[side].feasible, whole[side].reasons
         assert half[side].feasible, half[side].reasons
         assert whole[side].mode == "pinch"
 
 
-def test_rank_refuses_a_joint_value_that_is_not_finite(lib) -> None:  # type: ignore[no-untyped-def]
+def test_rank_refuses_a_joint_value_that_is_not_finite_and_a_bare_name(lib) -> None:  # type: ignore[no-untyped-def]
     from grace_dsl.runtime.errors import ParameterError
 
+    inst = lib["Laptop"].instantiate()
     with pytest.raises(ParameterError, match="finite"):
-        lib["Laptop"].instantiate().rank("close", Gripper.panda(), to=float("nan"))
+        inst.rank("close", Gripper.panda(), to=float("nan"))
+    with pytest.raises(ParameterError, match="list of grasp names"):
+        inst.rank("close", Gripper.panda(), also="left.pinch")
 
 
 @pytest.mark.slow
@@ -50,10 +57,10 @@ def test_the_panda_takes_a_wide_open_laptop_lid_by_its_side_where_its_front_is_o
     inst, robot = start.inst, panda()  # type: ignore[union-attr]
     assert inst.joints["hinge"] == pytest.approx(inst.joint_limits()["hinge"][1])
     base = robot_base(robot, inst, "close")
-    with pytest.raises(NoGraspError, match="unreachable"):
+    with pytest.raises(NoGraspError, match="no usable grasp"):
         grasp_candidates(robot, inst, "close", base=base, seed=0, grasps=FRONT)
     half = float(inst.joints["hinge"]) / 2
-    found, _ = grasp_candidates(robot, inst, "close", base=base, seed=0, to=half)
+    found, _ = grasp_candidates(robot, inst, "close", base=base, seed=0, to=half, also=SIDES)
     assert found and {c.option.grasp for c in found} <= set(SIDES)
 
 
