@@ -206,7 +206,15 @@ def plan_episode(
         )
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
-        return _plan_partial(robot, inst, task, exc, where, q_start, seed, also)
+        try:
+            return _plan_partial(robot, inst, task, exc, where, q_start, seed, also)
+        except GraceError as failure:
+            if not shorter:
+                raise
+            try:  # the part's other grasps, half way (a wide-open lid's side edge)
+                return _plan_shorter(inst, task, to, seed, base, q_start)
+            except GraceError:
+                raise failure from None
     except NoGraspError:
         if not shorter:
             raise
