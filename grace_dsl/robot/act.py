@@ -26,6 +26,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,7 @@ from grace_dsl.robot.plan import (
 )
 from grace_dsl.robot.timing import Trajectory, time_optimal
 from grace_dsl.runtime.errors import GraceError
+from grace_dsl.runtime.manipulation import CLEARANCE
 
 FloatArray = np.ndarray
 MAX_JOINT_STEP = 0.2  # radians between two tracked samples
@@ -56,6 +58,12 @@ CANDIDATES = 8  # grasp postures tried per action
 FINGERTIP_REACH = 0.0095  # metres the Panda's finger pads reach beyond the gripper frame
 STANDOFFS = (0.0, 0.0025, 0.005, 0.0075, FINGERTIP_REACH)  # metres short of the grasp
 FINGER_ALLOWANCE = 0.005  # metres the fingers may press into the link they hold
+# metres a pinch's closed fingers keep off the links they do not hold, where the hand can stop
+# that much further short (a lip as deep as the pads reach: their ends on the body below it)
+CLOSED_CLEAR = 0.0005
+# metres a pinch's fingers open beyond the part to let go (the flying hand's clearance on each
+# side, as it comes in): opened fully, the lower finger under a lid nearly shut meets the body
+RELEASE = 2 * CLEARANCE
 FINGERS = ("panda_leftfinger", "panda_rightfinger")
 GRIP_TIME = 0.5  # seconds the hand rests while the gripper closes or opens
 PHASES = ("approach", "insert", "interact", "retreat")
@@ -135,6 +143,7 @@ def plan_action(
     candidates: int = CANDIDATES,
     obstacles: Sequence[Any] = (),
     grasps: Sequence[str] | None = None,
+    also: Sequence[str] = (),
 ) -> ActionPlan:
     """The trajectory that performs ``action`` on ``inst`` to joint value ``to`` (default the
     end of the joint's range the action drives toward; for an action that moves no joint, a
@@ -143,12 +152,20 @@ def plan_action(
     :class:`ActionPlanningError` (or ``NoGraspError``) with the reason of the candidate that got
     furthest when this base placement cannot do it. ``obstacles``: the other objects of a room
     (posed instances that stand still), checked in every phase; ``grasps``: only these options
-    of ``inst.rank`` (default all)."""
+    of ``inst.rank`` (default all); ``also``: grasps tried besides the action's."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
     found, rejected = grasp_candidates(
-        robot, inst, action, base=base_m, seed=seed, obstacles=obstacles, grasps=grasps
+        robot,
+        inst,
+        action,
+        base=base_m,
+        seed=seed,
+        obstacles=obstacles,
+        grasps=grasps,
+        to=to,
+        also=also,
     )
     clock.append(("grasp", time.perf_counter()))
     full = collision_scene(robot, inst, base=base_m, obstacles=obstacles)
@@ -166,6 +183,9 @@ def plan_action(
             obstacles=obstacles,
         )
         path, values, to_value = _action_path(inst, action, choice.ik.grasp_pose, to, steps)
+        hand = (robot, inst, choice, base_m, link, allowance, obstacles)
+        gripping = _closed_scene(*hand) or held
+        releasing = _closed_scene(*hand, RELEASE) or held
         times: list[tuple[str, float]] = []
         try:
             parts, standoff = _phases(
@@ -173,7 +193,7 @@ def plan_action(
                 inst,
                 choice,
                 full,
-                held,
+                (held, gripping, releasing),
                 base_m,
                 q0,
                 path,
@@ -226,7 +246,7 @@ def _phases(
     inst: Any,
     choice: GraspChoice,
     full: CollisionScene,
-    held: CollisionScene,
+    scenes: tuple[CollisionScene, CollisionScene, CollisionScene],
     base: FloatArray,
     q0: FloatArray,
     path: FloatArray,
@@ -238,15 +258,21 @@ def _phases(
 ) -> tuple[list[tuple[FloatArray, FloatArray, _Object]], float]:
     """The four phases' joint waypoints, object joint values and collision scenes, checked
     (``clock`` gets the times the tracked phases and the approach were done), and the standoff.
+    ``scenes``: the hand open on the grasped link (moving in), as it holds it during the
+    interaction (a pinch's fingers closed on the part) and as it lets go (a pinch's fingers
+    opened ``RELEASE`` wider than the part, backing out).
 
     The cheap, decisive part first: from the grasp posture, the insert tracked backwards to the
     pre-grasp pose, then the interaction and the retreat; only then the approach (OMPL) from
     ``q0`` to the pre-grasp configuration the insert started from."""
     to_base = np.linalg.inv(base)
     start_value = float(inst.joints[joint]) if joint is not None else 0.0
+    held, gripping, releasing = scenes
     moving = _Object(held, inst, joint)
     grasp = to_base @ choice.ik.grasp_pose
-    off, q_grasp = _standoff(robot, grasp, choice.ik.q, moving, start_value)
+    holding = _Object(gripping, inst, joint)
+    hands = (moving,) if gripping is held else (moving, holding)
+    off, q_grasp = _standoff(robot, grasp, choice.ik.q, hands, start_value)
     path = path @ _back(off)
     grasp = to_base @ path[0]
     pre = grasp @ _back(APPROACH)
@@ -256,13 +282,14 @@ def _phases(
     interact, held_values = _track(
         robot, to_base @ path, q_grasp, "following the action", values, joint
     )
-    _check(moving, interact, held_values, "following the action")
+    _check(holding, interact, held_values, "following the action")
     try:
         retreat = _retreat(robot, to_base @ path[-1], interact[-1])
     except ActionPlanningError as exc:  # the object was moved all the way: say how far
         exc.value = float(held_values[-1]) if joint is not None else None
         raise
-    _check(moving, retreat, np.full(len(retreat), held_values[-1]), "backing out")
+    letting_go = _Object(releasing, inst, joint)
+    _check(letting_go, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
         approach = plan_path(full, q0, insert[0], time_limit=time_limit, seed=seed)
@@ -274,9 +301,45 @@ def _phases(
     return [
         (approach, np.full(len(approach), start_value), _Object(full, inst, None)),
         (insert, np.full(len(insert), start_value), moving),
-        (interact, held_values, moving),
-        (retreat, np.full(len(retreat), held_values[-1]), moving),
+        (interact, held_values, holding),
+        (retreat, np.full(len(retreat), held_values[-1]), letting_go),
     ], off
+
+
+def _closed_scene(
+    robot: Robot,
+    inst: Any,
+    choice: GraspChoice,
+    base: FloatArray,
+    link: str,
+    allowance: float,
+    obstacles: Sequence[Any],
+    wider: float = 0.0,
+) -> CollisionScene | None:
+    """The scene of a Panda whose fingers have closed on the part for a pinch (``wider`` metres
+    more apart), as they do before the interaction: a thin lid's open fingers straddle the body
+    under it, and the lower one, lifted with the lid, would seem to run into that body while the
+    closed one stays under the lid. None when the hand stays open (hooks and pushes), would be
+    open fully, or is not the Panda's."""
+    if choice.option.mode != "pinch" or robot.name != "panda":
+        return None
+    width = inst.grasp_width(choice.option.grasp)
+    if width is None or not 0.0 <= float(width) + wider < robot.gripper.max_width:
+        return None
+    return collision_scene(
+        _closed_panda(round(float(width) + wider, 4)),
+        inst,
+        base=base,
+        touching=[(f, link) for f in FINGERS],
+        allowance=allowance,
+        obstacles=obstacles,
+    )
+
+
+@lru_cache(maxsize=8)
+def _closed_panda(opening: float) -> Robot:
+    """The Panda with its fingers ``opening`` apart (loaded once per opening and process)."""
+    return Robot.panda(opening)
 
 
 def _retreat(robot: Robot, end: FloatArray, q: FloatArray) -> FloatArray:
@@ -296,15 +359,20 @@ def _retreat(robot: Robot, end: FloatArray, q: FloatArray) -> FloatArray:
 
 
 def _standoff(
-    robot: Robot, grasp: FloatArray, q: FloatArray, moving: _Object, value: float
+    robot: Robot, grasp: FloatArray, q: FloatArray, hands: Sequence[_Object], value: float
 ) -> tuple[float, FloatArray]:
     """How far short of the grasp pose (along its approach axis) the hand stops, and its joints
     there: the first of ``STANDOFFS`` at which the fingers press into nothing deeper than the
-    allowance. The grasp frame's origin is the middle of the finger pads, which reach
-    ``FINGERTIP_REACH`` beyond it: a hand pushing an edge or pinching a lip touches with the pads'
-    ends, and stopping at most that much short keeps the pads on the part (0 when nothing is
-    free: the insert's check then names the contact)."""
-    for off in STANDOFFS:
+    allowance, open and (``hands[1:]``) closed on the part; the closed fingers ``CLOSED_CLEAR``
+    off every other link where a standoff allows, if need be ``2 * CLOSED_CLEAR`` beyond the
+    pads' reach (a lid's lower finger right under its lip, its end on the body below: the
+    first sample that lifts the lid would touch it). The grasp
+    frame's origin is the middle of the finger pads, which reach ``FINGERTIP_REACH`` beyond it:
+    a hand pushing an edge or pinching a lip touches with the pads' ends, and stopping at most
+    that much short keeps the pads on the part (0 when nothing is free: the insert's check then
+    names the contact)."""
+    free: tuple[float, FloatArray] | None = None
+    for off in STANDOFFS + (FINGERTIP_REACH + 2 * CLOSED_CLEAR,) * (len(hands) > 1):
         if off == 0.0:
             q_off = np.asarray(q)
         else:
@@ -312,9 +380,12 @@ def _standoff(
             if not result.success:
                 continue
             q_off = np.asarray(result.q)
-        if not moving.collides(q_off, value):
+        if any(hand.collides(q_off, value) for hand in hands):
+            continue
+        if all(hand.clear(q_off, value) >= CLOSED_CLEAR for hand in hands[1:]):
             return off, q_off
-    return 0.0, np.asarray(q)
+        free = free or (off, q_off)
+    return free or (0.0, np.asarray(q))
 
 
 @dataclass(frozen=True)
@@ -329,6 +400,12 @@ class _Object:
         if self.joint is not None:
             self.scene.place(self.inst.with_joints({self.joint: value}))
         return self.scene.collides(q)
+
+    def clear(self, q: FloatArray, value: float) -> float:
+        """The robot's distance to the object's links it may not touch (metres)."""
+        if self.joint is not None:
+            self.scene.place(self.inst.with_joints({self.joint: value}))
+        return self.scene.object_distance(q)
 
     def contact(self, q: FloatArray, value: float) -> str:
         self.collides(q, value)

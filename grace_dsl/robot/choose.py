@@ -88,18 +88,21 @@ def grasp_candidates(
     starts: int = STARTS,
     obstacles: Sequence[Any] = (),
     grasps: Sequence[str] | None = None,
+    to: float | None = None,
+    also: Sequence[str] = (),
 ) -> tuple[list[GraspChoice], list[tuple[str, str]]]:
     """Every distinct reachable, collision-free solution of the action's feasible options (from
     home, then from ``starts`` seed-bank configurations near the option's grasp), best margin
     first, and the options that gave none with their reasons. Raises :class:`NoGraspError`
     when there is no solution at all. ``obstacles``: other posed instances to keep clear of
     (``collision_scene``); ``grasps``: only these options (an agent's retry skips the ones it
-    has tried)."""
+    has tried); ``to``: the joint value the action goes to (``inst.rank`` judges the path that
+    far); ``also``: grasps tried besides the action's (``inst.rank``'s ``also``)."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     scene = collision_scene(robot, inst, ignore=fingers, base=base_m, obstacles=obstacles)
     rejected: list[tuple[str, str]] = []
     found: list[GraspChoice] = []
-    for option in inst.rank(action, gripper=robot.gripper):
+    for option in inst.rank(action, gripper=robot.gripper, to=to, also=also):
         if grasps is not None and option.grasp not in grasps:
             continue
         if not option.feasible:

@@ -27,6 +27,7 @@ from grace_dsl.runtime.inputs import as_array, check_pose
 FloatArray = np.ndarray
 UR5_HOME = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
 PANDA_HOME = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
+PANDA_OPEN = 0.08  # m between the Panda's fingers fully open (each finger joint 0-0.04 m)
 
 
 class RobotModelError(ParameterError):
@@ -91,19 +92,25 @@ class Robot:
         )
 
     @staticmethod
-    def panda() -> Robot:
+    def panda(opening: float = PANDA_OPEN) -> Robot:
         """The Franka Emika Panda (example-robot-data), fingers open, TCP ``panda_hand_tcp``.
 
         ``panda_hand_tcp`` sits 103.4 mm along the hand's +z, between the fingertips; the hand's
         +z is the approach and its fingers slide along its y axis, so the frame is already the
-        gripper frame of DESIGN.md §6.
+        gripper frame of DESIGN.md §6. ``opening``: the gap between the fingers in metres (the
+        collision geometry of a hand closed on a part; the kinematics do not change).
         """
+        if not 0.0 <= opening <= PANDA_OPEN:
+            raise ParameterError(
+                f"the Panda's fingers open 0 to {PANDA_OPEN * 1e3:.0f} mm, not {opening * 1e3:g} mm"
+            )
         urdf = robot_data_file("panda_description/urdf/panda.urdf")
+        half = opening / 2
         return Robot.from_urdf(
             urdf,
             tcp="panda_hand_tcp",
             gripper=Gripper.panda(),
-            locked={"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04},
+            locked={"panda_finger_joint1": half, "panda_finger_joint2": half},
             home=PANDA_HOME,
             package_dirs=[urdf.parents[4]],
             name="panda",

@@ -12,7 +12,7 @@ typed error names the formula (``EvaluationError``) or the bad input (``Paramete
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, cast
 
@@ -486,9 +486,18 @@ class Instance:
         gripper: Gripper | None = None,
         samples: int = 32,
         reference: Any = None,
+        to: float | None = None,
+        also: Sequence[str] = (),
     ) -> tuple[Option, ...]:
         """The manipulation functions of ``action`` judged for ``gripper`` (default the Panda),
-        best first: see :func:`grace_dsl.runtime.manipulation.rank`."""
+        best first: see :func:`grace_dsl.runtime.manipulation.rank`. ``to``: judge the follow
+        path only as far as this joint value (default the end of the range the action drives
+        toward): a hand that carries a lid part of the way, then takes it again otherwise.
+        ``also``: grasps (names) judged besides those the action names."""
+        if to is not None:
+            to = as_number("to", to)
+            if not math.isfinite(to):
+                raise ParameterError(f"rank's to must be a finite joint value, not {to!r}")
         if gripper is None:
             gripper = Gripper.panda()
         elif not isinstance(gripper, Gripper):
@@ -497,7 +506,9 @@ class Instance:
             )
         samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
         ref = None if reference is None else as_rotation(reference)
-        return rank(self, action, gripper, samples, ref)
+        if isinstance(also, str) or not all(isinstance(g, str) for g in also):
+            raise ParameterError(f"rank's also is a list of grasp names, not {also!r:.60}")
+        return rank(self, action, gripper, samples, ref, to, tuple(also))
 
     def follow(
         self,

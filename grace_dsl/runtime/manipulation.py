@@ -103,12 +103,18 @@ def rank(
     gripper: Gripper,
     samples: int = 32,
     reference: Any = None,
+    to: float | None = None,
+    also: Sequence[str] = (),
 ) -> tuple[Option, ...]:
-    """Every manipulation function of ``action``, best first (see the module docstring)."""
+    """Every manipulation function of ``action``, best first (see the module docstring); the
+    follow path judged as far as joint value ``to`` (default the end the action drives to);
+    ``also``: grasps judged besides those the action names."""
     spec = inst._action_spec(action)
     samples = as_count("samples", samples, 1, MAX_RANK_SAMPLES)
-    ctx = _Context(inst, spec, gripper, reference)
-    options = [_judge_in(ctx, g, samples) for g in candidates(inst, spec)]
+    ctx = _Context(inst, spec, gripper, reference, to)
+    names = candidates(inst, spec)
+    names += [g for g in also if g not in names and g in inst.grasp_names]
+    options = [_judge_in(ctx, g, samples) for g in names]
     return tuple(sorted(options, key=Option.sort_key))
 
 
@@ -131,7 +137,14 @@ def candidates(inst: Instance, action: ActionSpec) -> list[str]:
 class _Context:
     """What the options of one rank call share: the hand's home, the scene, the path's end."""
 
-    def __init__(self, inst: Instance, action: ActionSpec, gripper: Gripper, reference: Any):
+    def __init__(
+        self,
+        inst: Instance,
+        action: ActionSpec,
+        gripper: Gripper,
+        reference: Any,
+        to: float | None = None,
+    ):
         self.inst, self.action, self.gripper = inst, action, gripper
         fallback = HAND_HOME if reference is None else np.asarray(reference, float)[:3, :3]
         self.home = gripper.home(fallback)
@@ -139,7 +152,7 @@ class _Context:
         constrained = gripper.approach is not None or gripper.closing is not None
         self.reference = self.home if constrained or reference is not None else None
         self._scene: Scene | None = None
-        self.end = _path_end(inst, action)
+        self.end = _path_end(inst, action, to)
 
     @property
     def scene(self) -> Scene:
@@ -148,14 +161,17 @@ class _Context:
         return self._scene
 
 
-def _path_end(inst: Instance, action: ActionSpec) -> float | None:
-    """The joint value a follow path ends at: the end of the range the action drives towards
-    (a quarter turn for a joint that turns freely); None without a joint or path."""
+def _path_end(inst: Instance, action: ActionSpec, to: float | None = None) -> float | None:
+    """The joint value a follow path ends at: ``to`` (clamped to the range), else the end of
+    the range the action drives towards (a quarter turn for a joint that turns freely); None
+    without a joint or path."""
     if action.joint is None:
         return None
     lo, hi = inst.joint_limits()[action.joint]
     q0 = inst.joints[action.joint]
     end = hi if action.opening else lo
+    if to is not None:
+        end = min(max(float(to), lo), hi)
     if not math.isfinite(end):
         end = q0 + action.sign * math.pi / 2
     return None if abs(end - q0) < 1e-9 else float(end)

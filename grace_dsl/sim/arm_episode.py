@@ -33,7 +33,8 @@ from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.arm import ArmWorld
+from grace_dsl.runtime.manipulation import CLEARANCE
+from grace_dsl.sim.arm import FINGER_SPEED, ArmWorld
 from grace_dsl.sim.arm_control import HandImpedance, JointTrajectory, track_torque
 from grace_dsl.sim.control import PathFollower, blend, rotation_angle
 from grace_dsl.sim.episode import (
@@ -71,6 +72,8 @@ STAGES = 3
 # 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
 LATER = 6.0
 PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
+# Fractions of the way a stage is planned to when no grasp carries the part all the way
+SHORTER = (0.5,)
 PATH_FIRST = 3  # base poses scored on the hand's path tried (interleaved with the fixed shifts)
 OPEN_ENOUGH = 0.55  # fraction of the range past which an open stops staging (strict: half)
 CLOSE_ENOUGH = 0.025  # fraction of the range within which a close stops staging (strict: 5 %)
@@ -165,21 +168,28 @@ def plan_episode(
     *,
     base: np.ndarray | None = None,
     q_start: np.ndarray | None = None,
+    to: float | None = None,
+    also: tuple[str, ...] = (),
 ) -> ActionPlan:
     """The robot layer's plan for the task from where the object stands: an open to
     ``OPEN_TO`` of the range, a close to the closed end; where the arm cannot get that far,
     to ``REPLAN_AT`` of how far it can, when that moves the part ``MIN_STAGE`` of the range
-    (the next stage goes on from there).
+    (the next stage goes on from there); where no grasp the arm can take carries the part to
+    the end at all, ``SHORTER`` of the way (``_plan_shorter``). ``to``: plan to this joint
+    value instead (and no shorter); ``also``: grasps tried besides the action's.
 
     Without ``base`` (the first stage) the base is placed for the object as it stands and
     ``plan_placed`` may move it; a partial plan is made from the placement that got furthest.
     With ``base`` (a later stage: the base stands where it stood) the arm starts at ``q_start``.
     """
     from grace_dsl.robot.act import ActionPlanningError, plan_action
+    from grace_dsl.robot.choose import NoGraspError
     from grace_dsl.robot.placement import _centred, path_bases, placements, plan_placed
 
     robot = panda()
-    to = _plan_to(inst, task)
+    shorter = to is None
+    if to is None:
+        to = _plan_to(inst, task)
     try:
         if base is None:
             first = robot_base(robot, inst, task.action)
@@ -189,14 +199,87 @@ def plan_episode(
             fixed[1:1] = [centred] if centred is not None else []
             poses = _interleave(scored[:PATH_FIRST], fixed, PLACEMENTS)
             return plan_placed(
-                robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses
+                robot, inst, task.action, to, seed=seed, count=PLACEMENTS, poses=poses, also=also
             ).plan
         return plan_action(
-            robot, inst, task.action, to, base=base, q_start=q_start, seed=seed, time_limit=LATER
+            robot,
+            inst,
+            task.action,
+            to,
+            base=base,
+            q_start=q_start,
+            seed=seed,
+            time_limit=LATER,
+            also=also,
         )
     except ActionPlanningError as exc:
         where = base if base is not None else exc.base
-        return _plan_partial(robot, inst, task, exc, where, q_start, seed)
+        try:
+            return _plan_partial(robot, inst, task, exc, where, q_start, seed, also)
+        except GraceError as failure:
+            if not shorter:
+                raise
+            try:  # the part's other grasps, half way (a wide-open lid's side edge)
+                return _plan_shorter(inst, task, to, seed, base, q_start)
+            except GraceError:
+                raise failure from None
+    except NoGraspError:
+        if not shorter:
+            raise
+        return _plan_shorter(inst, task, to, seed, base, q_start)
+
+
+def _plan_shorter(
+    inst: Instance,
+    task: TaskAction,
+    to: float,
+    seed: int,
+    base: np.ndarray | None,
+    q_start: np.ndarray | None,
+) -> ActionPlan:
+    """A stage to ``SHORTER`` of the way to ``to``, the other grasps on the part the action
+    moves tried too (``_link_grasps``), when no grasp the arm can take carries the part all the
+    way: a wide-open laptop lid's front edge is out of reach from anywhere, its side edge is
+    not, and the next stage takes the front edge half way down. Raises the stage's failure
+    when none plans either."""
+    from grace_dsl.robot.choose import NoGraspError
+
+    lo, hi = inst.joint_limits()[task.joint]
+    start = float(inst.joints[task.joint])
+    failure: GraceError | None = None
+    for fraction in SHORTER:
+        partial = start + fraction * (to - start)
+        if abs(partial - start) < MIN_STAGE * (hi - lo):
+            break
+        try:
+            return plan_episode(
+                inst,
+                task,
+                seed,
+                base=base,
+                q_start=q_start,
+                to=partial,
+                also=_link_grasps(inst, task.action),
+            )
+        except GraceError as exc:
+            failure = failure or exc
+    raise failure or NoGraspError(
+        f"no usable grasp for {task.action} of {inst.concept.name} from {start:.3g}"
+    )
+
+
+def _link_grasps(inst: Instance, action: str) -> tuple[str, ...]:
+    """The grasps on the link ``action`` moves that it does not name: ways to hold the part
+    that the action's own do not list (a lid's side edges, which a flying hand, choosing by
+    rank alone, would take even where they hold less than the front edge)."""
+    spec = inst.concept.actions[action]
+    if spec.joint is None:
+        return ()
+    child = inst.concept.joints[spec.joint].child
+    using = set(spec.using)
+    return tuple(
+        g for g in inst.grasp_names if g not in using and inst.concept.grasps[g].link == child
+    )
 
 
 def _plan_to(inst: Instance, task: TaskAction) -> float:
@@ -223,29 +306,34 @@ def next_stage(
     ``move_base``, from a base placed anew for the rest of the path (as for the first stage:
     ``path_bases`` scores bases on the hand's remaining path; the arm starts at home, as it
     would after the base drove there, which is not simulated); else (or when no placement
-    plans at all) part of the way from ``base``. A second grasp of a wide door's handle from
-    the first stage's base meets the same workspace edge the first did."""
+    plans at all) part of the way from ``base``, by the action's grasps or else the part's
+    others (``_plan_shorter``). A second grasp of a wide door's handle from the first stage's
+    base meets the same workspace edge the first did."""
     from grace_dsl.robot.act import ActionPlanningError, plan_action
+    from grace_dsl.robot.choose import NoGraspError
 
     robot = panda()
+    to = _plan_to(inst, task)
     try:
         return plan_action(
-            robot,
-            inst,
-            task.action,
-            _plan_to(inst, task),
-            base=base,
-            q_start=here,
-            seed=seed,
-            time_limit=LATER,
+            robot, inst, task.action, to, base=base, q_start=here, seed=seed, time_limit=LATER
         )
-    except ActionPlanningError as kept:
+    except (ActionPlanningError, NoGraspError) as kept:
         if move_base:
             try:
                 return plan_episode(inst, task, seed)
             except GraceError:
                 pass
-        return _plan_partial(robot, inst, task, kept, base, here, seed)
+        failure: GraceError = kept
+        if isinstance(kept, ActionPlanningError):
+            try:
+                return _plan_partial(robot, inst, task, kept, base, here, seed)
+            except GraceError as partial:
+                failure = partial
+        try:  # the part's other grasps, part of the way (a wide-open lid's side edge)
+            return _plan_shorter(inst, task, to, seed, base, here)
+        except GraceError:
+            raise failure from None
 
 
 def _plan_partial(
@@ -256,6 +344,7 @@ def _plan_partial(
     base: np.ndarray | None,
     q_start: np.ndarray | None,
     seed: int,
+    also: tuple[str, ...] = (),
 ) -> ActionPlan:
     """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
     earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
@@ -282,6 +371,7 @@ def _plan_partial(
                 q_start=q_start,
                 seed=seed,
                 time_limit=LATER,
+                also=also,
             )
         except ActionPlanningError as exc:
             failure = exc
@@ -445,7 +535,17 @@ def execute_plan(
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     hold = follower.pose_at(goal) if task.sign < 0 and not slipped and not partial else None
-    return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold)
+    release = _release(inst, plan) if phases.pinch else None
+    return _finish(world, task, arrived, slipped, "", hand=hand, hold=hold, release=release)
+
+
+def _release(inst: Instance, plan: ActionPlan) -> float | None:
+    """How far a pinch opens to let go, as the planner backed it out (``act.RELEASE`` wider
+    than the part; None: fully)."""
+    from grace_dsl.robot.act import RELEASE
+
+    width = inst.grasp_width(plan.choice.option.grasp)
+    return None if width is None else float(width) + RELEASE
 
 
 def _pinch_in(
@@ -458,14 +558,42 @@ def _pinch_in(
     back = grasp.copy()
     back[:3, 3] += grasp[:3, 2] * plan.standoff
     gripper = panda().gripper
-    deep = deeper(inst, gripper, back, (gripper.max_width, gripper.max_width))
-    start, posture, t0 = world.hand_pose(), world.arm_q(), world.time
+    start, posture = world.hand_pose(), world.arm_q()
+    widths = _narrow(world, inst, plan, hand, start, posture)
+    deep = deeper(inst, gripper, back, widths)
+    t0 = world.time
 
     def move(t: float) -> np.ndarray:
         return hand.torque(world, blend(start, deep, (t - t0) / PINCH_IN_TIME), posture)
 
     _run(world, PINCH_IN_TIME + SETTLE / 2, move, absolute=True)
     return deep
+
+
+def _narrow(
+    world: ArmWorld,
+    inst: Instance,
+    plan: ActionPlan,
+    hand: HandImpedance,
+    pose: np.ndarray,
+    posture: np.ndarray,
+) -> tuple[float, float]:
+    """Close the open hand to the part's width plus the flying hand's clearance where it stands
+    (the planner's pose, clear of the object), as the flying hand comes in: a finger open to
+    its full 80 mm under a laptop's lid lies under the base and would close on base and lid.
+    Returns the openings (before, after closing) the pinch goes in with."""
+    width = inst.grasp_width(plan.choice.option.grasp)
+    full = panda().gripper.max_width
+    if width is None:
+        return full, full
+    open_to = min(float(width) + 2 * CLEARANCE, full)
+    world.set_fingers(open_to)
+    _run(
+        world,
+        (full - open_to) / 2 / FINGER_SPEED + SETTLE / 3,
+        lambda t: hand.torque(world, pose, posture),
+    )
+    return open_to, float(width)
 
 
 def _posture(phases: _Phases, value: float) -> np.ndarray:
@@ -531,15 +659,18 @@ def _finish(
     unstable: bool = False,
     hand: HandImpedance | None = None,
     hold: np.ndarray | None = None,
+    release: float | None = None,
 ) -> Outcome:
-    """Let go (at ``hold``, else where the hand is), back off along the approach axis and
-    settle; the joint value after that is the episode's result."""
+    """Let go (at ``hold``, else where the hand is; opening to ``release``, else fully, and
+    fully once backed off), back off along the approach axis and settle; the joint value after
+    that is the episode's result."""
     if not unstable:
         hand = hand or HandImpedance()
         posture = world.arm_q()
         hold = world.hand_pose() if hold is None else hold
         _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
-        world.set_fingers(world.hand.finger_travel * 2)
+        full = world.hand.finger_travel * 2
+        world.set_fingers(full if release is None else min(release, full))
         _run(world, SETTLE, lambda t: hand.torque(world, hold, posture))
         back = hold.copy()
         back[:3, 3] -= hold[:3, 2] * RETREAT
@@ -549,6 +680,7 @@ def _finish(
             return hand.torque(world, blend(hold, back, (t - t0) / SETTLE), world.arm_q())
 
         _run(world, 2 * SETTLE, retreat, absolute=True)
+        world.set_fingers(full)
     q = world.q(task.joint)
     return Outcome(
         q if np.isfinite(q) else float("nan"),
