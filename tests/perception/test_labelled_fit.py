@@ -177,3 +177,20 @@ def test_the_outline_pulls_a_too_tall_and_too_deep_start_back(lib) -> None:
         errors[key] = np.abs(np.asarray(fitted.params["size"]) - truth["size"]) * 1000
     assert errors["free"][1] > 45 and errors["free"][2] > 50, errors  # nothing pulls
     assert errors["outline"][1] < 40 and errors["outline"][2] < 30, errors
+
+
+def test_the_outline_rays_lie_just_outside_the_silhouette() -> None:
+    """A 0.4 m square 2 m away on a 2 mm grid: every ray passes outside it, within 8 spacings
+    of its edge, on each of its four sides; a cloud too small has no outline."""
+    g = np.arange(-0.2, 0.2 + 1e-9, 0.002)
+    x, y = np.meshgrid(g, g)
+    square = np.stack([x.ravel(), y.ravel(), np.full(x.size, 2.0)], axis=1)
+    outline = outline_rays(square, np.zeros(3), seed=0)
+    assert outline is not None and len(outline.dirs) == 256
+    at = outline.dirs * (2.0 / outline.dirs[:, 2:])  # where each ray crosses the square's plane
+    edge = np.abs(at[:, :2]).max(axis=1)
+    assert np.all(edge > 0.2 + 1.5 * 0.002) and np.all(edge < 0.2 + 9 * 0.002), edge
+    sides = np.sign(at[:, :2])[np.arange(len(at)), np.abs(at[:, :2]).argmax(axis=1)]
+    assert len(set(zip(np.abs(at[:, :2]).argmax(axis=1), sides))) == 4
+    assert outline.near < 2.0 < outline.far
+    assert outline_rays(square[:10], np.zeros(3)) is None
