@@ -34,6 +34,7 @@ from grace_dsl.perception.model import (
     parts_model,
     sdf_model,
 )
+from grace_dsl.perception.outline import Outline, nearest_points, outline_rays
 from grace_dsl.perception.start import feasible_instance, plane_starts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
@@ -387,16 +388,19 @@ class Fitter:
         camera: np.ndarray,
         iterations: int = 30,
         free: np.ndarray | None = None,
+        outline: Outline | None = None,
     ) -> FitResult:
         """Refine from ``pose`` (concept in the points' frame) and the starting parameters;
-        ``free`` the free-space points (``free_space``: computed here when None)."""
+        ``free`` the free-space points (``free_space``: computed here when None); ``outline``
+        rays outside the silhouette (``perception.outline``): each one's nearest point to the
+        estimate joins the free space, searched again after every accepted step."""
         st = _State(self.theta0.copy(), self.q0.copy(), pose.copy())
-        free_world = free_space(points, camera) if free is None else free
+        free_static = free_space(points, camera) if free is None else free
+        free_world = self._with_outline(st, free_static, outline)
         mu, nt, nq = 1e-3, len(st.theta), len(st.q)
         frame = _inv(st.pose)
-        r, jac, dd = self.residuals(
-            st, _transform(frame, points), _transform(frame, free_world), True
-        )
+        y, f = _transform(frame, points), _transform(frame, free_world)
+        r, jac, dd = self.residuals(st, y, f, True)
         st.cost = float(r @ r)
         done = 0
         for it in range(1, iterations + 1):
@@ -423,7 +427,11 @@ class Fitter:
                 break
             gain = st.cost - trial.cost
             st, mu = trial, max(mu / 3, 1e-7)
+            if outline is not None:
+                free_world = self._with_outline(st, free_static, outline)
+                f = _transform(_inv(st.pose), free_world)
             r, jac, dd = self.residuals(st, y, f, True)
+            st.cost = float(r @ r)
             if gain < 1e-10 * max(st.cost, 1e-12):
                 break
         frame = _inv(st.pose)
@@ -434,6 +442,17 @@ class Fitter:
         return replace(
             self._result(st, dd, done), free=FREE_WEIGHT * seen, part_inliers=self._parts(dd)
         )
+
+    def _with_outline(self, st: _State, free: np.ndarray, outline: Outline | None) -> np.ndarray:
+        """``free`` and, per outline ray, its point nearest the surface at ``st``."""
+        if outline is None:
+            return free
+        frame = _inv(st.pose)
+
+        def union(world: np.ndarray) -> np.ndarray:
+            return self.distances(st, _transform(frame, world), False)[0]
+
+        return np.concatenate([free, nearest_points(outline, union)])
 
     def _parts(self, dd: np.ndarray) -> float:
         """The worst labelled part's share of points on its own shapes (1 without labels);
@@ -583,6 +602,10 @@ LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane)
 LABEL_POINTS = 384  # the labelled fit's points (every part keeps a share: ``subsample``)
 LABEL_FREE = 768  # and free-space points
 LABEL_MARGIN = 0.1  # of the extent: the band outside the outline the free rays are drawn in
+OUTLINE = True  # the silhouette's render-and-compare term (``perception.outline``)
+# m: the Cauchy scales the outline term joins at; the near-least-squares stages place the parts
+# first (from a far start every ray cuts the surface, and their pull squeezed the handle)
+OUTLINE_SCALE = WIDE_CAUCHY
 
 
 def labelled_fit(
@@ -609,6 +632,7 @@ def labelled_fit(
     # the outline from every point: a subsample's wider spacing would start the seen-through
     # space centimetres outside it (4 spacings), where a too tall cabinet is not caught
     free = free_space(points, cam, seed, LABEL_MARGIN)
+    outline = outline_rays(points, cam, seed) if OUTLINE else None
     keep = subsample(labels, LABEL_POINTS, rng)
     points, labels = points[keep], labels[keep]
     base = concept.instantiate().params
@@ -633,20 +657,43 @@ def labelled_fit(
     for _, pose, params, joints in cands:
         if not _resolves(concept, params, [str(n) for n in np.unique(labels)]):
             continue  # a variant without the labelled parts (another handle kind)
-        tried.append(_stage(concept, points, labels, free, pose, params, joints, LABEL_CAUCHY))
+        tried.append(
+            _stage(concept, points, labels, free, outline, pose, params, joints, LABEL_CAUCHY)
+        )
     if not tried:  # every start lost a labelled part: start from the labels' own variant
-        tried.append(_stage(concept, points, labels, free, cands[0][1], base, states[0], 0.3))
+        tried.append(
+            _stage(concept, points, labels, free, outline, cands[0][1], base, states[0], 0.3)
+        )
     best = min(tried, key=_score)
     for scale, steps in ((LABEL_CAUCHY, 15), (WIDE_CAUCHY, LABEL_SCREEN)):
         best = _stage(
-            concept, points, labels, free, best.pose, best.params, best.joints, scale, steps
+            concept,
+            points,
+            labels,
+            free,
+            outline,
+            best.pose,
+            best.params,
+            best.joints,
+            scale,
+            steps,
         )
     # the last stage keeps the requirements (a real instance meets them), from the nearest
     # start that meets them: the earlier stages may cross them on the way (a height and a
     # handle's place move together), which a strict fit's refused steps could not
     params = dict(feasible_instance(concept, best.params).params)
     return _stage(
-        concept, points, labels, free, best.pose, params, best.joints, CAUCHY, iterations, True
+        concept,
+        points,
+        labels,
+        free,
+        outline,
+        best.pose,
+        params,
+        best.joints,
+        CAUCHY,
+        iterations,
+        True,
     )
 
 
@@ -691,6 +738,7 @@ def _stage(
     points: np.ndarray,
     labels: np.ndarray,
     free: np.ndarray,
+    outline: Outline | None,
     pose: np.ndarray,
     params: Mapping[str, Any],
     joints: Mapping[str, float],
@@ -703,7 +751,8 @@ def _stage(
         fitter = Fitter(concept, params, joints, scale, labels, strict)
     except ParameterError:  # a scaled start that breaks a requirement
         fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels, strict)
-    return fitter.run(points, pose, np.zeros(3), iterations, free)
+    seen = outline if scale <= OUTLINE_SCALE else None
+    return fitter.run(points, pose, np.zeros(3), iterations, free, seen)
 
 
 def _score(r: FitResult) -> float:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from grace_dsl.perception.estimate import confidence, estimate
-from grace_dsl.perception.fit import Fitter, rotation_exp
+from grace_dsl.perception.fit import CAUCHY, LABEL_MARGIN, Fitter, free_space, rotation_exp
 from grace_dsl.perception.labels import (
     LabelError,
     check_labels,
@@ -19,6 +19,7 @@ from grace_dsl.perception.labels import (
     valid_labels,
 )
 from grace_dsl.perception.model import parts_model, sdf_model
+from grace_dsl.perception.outline import outline_rays
 from grace_dsl.perception.views import generate_labelled_views, join_params
 from grace_dsl.runtime.shapes import ShapeTree
 
@@ -148,3 +149,48 @@ def test_a_fit_turned_180_degrees_is_corrected_or_not_trusted(lib) -> None:
     assert confidence(held.residual, held.inliers, 2000, held.part_inliers) < 0.5
     right = fitter.run(pts[some], view.pose, np.zeros(3), iterations=0)
     assert confidence(right.residual, right.inliers, 2000, right.part_inliers) > 0.8
+
+
+@pytest.mark.slow
+def test_the_outline_pulls_a_too_tall_and_too_deep_start_back(lib) -> None:
+    """HingedCabinet, noise-free: a start 52 mm too tall and 60 mm too deep whose extra lies
+    where no point is (below the bottom edge, behind the back) fits every point; only the rays
+    outside the silhouette see it. Free space alone leaves it, the outline term shrinks it."""
+    concept = lib["HingedCabinet"]
+    view, names = generate_labelled_views(concept, 1, HELDOUT, noise=0.0, every_pixel=True)[0]
+    pts, labels = view.points.astype(float), np.array(names)
+    truth = join_params(concept, view.params, view.fixed)
+    rng = np.random.default_rng(0)
+    free = free_space(pts, np.zeros(3), 0, LABEL_MARGIN)
+    free = free[rng.choice(len(free), 768, replace=False)]
+    outline = outline_rays(pts, np.zeros(3), 0)
+    assert outline is not None
+    keep = subsample(labels, 384, rng)
+    extra = np.array([0.0, 0.052, 0.06])  # within the typical range of this view's size
+    start = truth | {"size": tuple(np.asarray(truth["size"]) + extra)}
+    shift = np.eye(4)
+    shift[1, 3], shift[2, 3] = -extra[1] / 2, -extra[2] / 2  # the seen top and front in place
+    errors = {}
+    for key, rays in (("free", None), ("outline", outline)):
+        fitter = Fitter(concept, start, view.joints, CAUCHY, labels[keep], strict=False)
+        fitted = fitter.run(pts[keep], view.pose @ shift, np.zeros(3), 40, free, rays)
+        errors[key] = np.abs(np.asarray(fitted.params["size"]) - truth["size"]) * 1000
+    assert errors["free"][1] > 45 and errors["free"][2] > 50, errors  # nothing pulls
+    assert errors["outline"][1] < 40 and errors["outline"][2] < 30, errors
+
+
+def test_the_outline_rays_lie_just_outside_the_silhouette() -> None:
+    """A 0.4 m square 2 m away on a 2 mm grid: every ray passes outside it, within 8 spacings
+    of its edge, on each of its four sides; a cloud too small has no outline."""
+    g = np.arange(-0.2, 0.2 + 1e-9, 0.002)
+    x, y = np.meshgrid(g, g)
+    square = np.stack([x.ravel(), y.ravel(), np.full(x.size, 2.0)], axis=1)
+    outline = outline_rays(square, np.zeros(3), seed=0)
+    assert outline is not None and len(outline.dirs) == 256
+    at = outline.dirs * (2.0 / outline.dirs[:, 2:])  # where each ray crosses the square's plane
+    edge = np.abs(at[:, :2]).max(axis=1)
+    assert np.all(edge > 0.2 + 1.5 * 0.002) and np.all(edge < 0.2 + 9 * 0.002), edge
+    sides = np.sign(at[:, :2])[np.arange(len(at)), np.abs(at[:, :2]).argmax(axis=1)]
+    assert len(set(zip(np.abs(at[:, :2]).argmax(axis=1), sides))) == 4
+    assert outline.near < 2.0 < outline.far
+    assert outline_rays(square[:10], np.zeros(3)) is None
