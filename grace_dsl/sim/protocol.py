@@ -35,6 +35,9 @@ P_CLOSED = 0.5  # the paper's chance of a closed start
 AZIMUTH = (0.0, 360.0)  # degrees
 ELEVATION = (30.0, 60.0)  # degrees
 DRAW_ATTEMPTS = 50  # parameter draws tried before a draw counts as invalid
+# Parameters that say a part stands alone (no host around it), as every episode places it: a
+# door leaf's or a drawer's free edge is reachable, so it is not drawn.
+ALONE: dict[str, Any] = {"free_edge": 1}
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,7 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
     action = task_action(concept, config.task)
     for _ in range(DRAW_ATTEMPTS):
         params = draw_params(concept, rng, specs)
+        params.update({k: v for k, v in ALONE.items() if k in params})
         try:
             inst = concept.instantiate(ranges=ranges, params=params)
         except RequirementError:

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from grace_dsl import Gripper
 from grace_dsl.export import export_mjcf
 from grace_dsl.runtime.errors import RequirementError
 from grace_dsl.runtime.kinematics import Kinematics
@@ -84,3 +85,40 @@ def test_mujoco_collides_with_the_boards(lib) -> None:  # type: ignore[no-untype
         rot = data.geom_xmat[g].reshape(3, 3)
         local = rot.T @ (centre - data.geom_xpos[g]) - model.geom_aabb[g, :3]
         assert not np.all(np.abs(local) < model.geom_aabb[g, 3:]), model.geom(g).name
+
+
+def _facing_robot() -> np.ndarray:
+    """The part 1 m in front of the robot, its front (+z) facing back at it, +y up."""
+    m = np.eye(4)
+    m[:3, :3] = np.column_stack([[0, -1, 0], [0, 0, 1], [-1, 0, 0]])
+    m[:3, 3] = (1.0, 0.0, 0.8)
+    return m
+
+
+@pytest.mark.parametrize(
+    "name, edge, extra",
+    [
+        ("DoorLeaf", "pinch_edge[0]", {"hinge_side": "left"}),
+        ("DoorLeaf", "pinch_edge[0]", {"hinge_side": "right"}),
+        ("Drawer", "pinch_top[0]", {}),
+    ],
+)
+def test_a_recessed_pull_is_opened_by_the_free_edge_pinched(
+    lib, name: str, edge: str, extra
+) -> None:  # type: ignore[no-untyped-def]
+    """A recessed pull's cup walls face sideways, so no hook in it pulls a leaf or a drawer out
+    of its face; alone, the part is opened by its free edge pinched, and in a host (free_edge
+    0) that grasp is not offered at all."""
+    panda = Gripper.panda()
+    inst = lib[name].instantiate(pose=_facing_robot(), handle_kind="recessed", **extra)
+    options = inst.rank("open", panda)
+    best = options[0]
+    assert best.feasible and best.grasp == edge and best.mode == "pinch"
+    hook = next(o for o in options if o.grasp == "handle@recessed.pull")
+    if name == "Drawer" or extra["hinge_side"] == "left":
+        assert not hook.feasible and "pulls the fingers off the wall" in hook.reasons[0]
+    framed = lib[name].instantiate(
+        pose=_facing_robot(), handle_kind="recessed", free_edge=0, **extra
+    )
+    assert edge not in framed.grasp_names
+    assert all(o.grasp != edge for o in framed.rank("open", panda))
