@@ -293,7 +293,9 @@ class LabelledCloud:
     def on(self, part: str) -> np.ndarray:
         """Points on ``part``: labelled with it, a variant of it or one of its shapes
         (``handle@bar`` and ``handle.left_post`` are the ``handle``'s)."""
-        return np.array([_part_of(lab) == part for lab in self.labels], bool).reshape(-1)
+        names, which = np.unique(np.asarray(self.labels, str), return_inverse=True)
+        hit = np.array([_part_of(str(n)) == part for n in names], bool)
+        return hit[which.reshape(-1)] if len(names) else np.zeros(0, bool)
 
     def count(self, label: str) -> int:
         return int(np.count_nonzero(self.on(label)))

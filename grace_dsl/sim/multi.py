@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -71,7 +72,7 @@ class Act:
     sim_seconds: float  # simulated time this action took
 
 
-class Room:
+class Room(ABC):
     """What a world of several posed objects knows of them, whoever acts in it (the flying
     hand's ``MultiWorld``, the arm's ``ArmMultiWorld``): their names, the instances as placed,
     the scene, and where each object's movable joints sit in the compiled model's state. The
@@ -105,9 +106,9 @@ class Room:
                 if j.kind != "fixed" and j.source in inst.concept.joint_index
             }
 
+    @abstractmethod
     def _state(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """The compiled model and its live data (the acting world's)."""
-        raise NotImplementedError
 
     def joints(self, obj: str) -> dict[str, float]:
         """The measured value of every joint of object ``obj`` (concept joint names)."""
