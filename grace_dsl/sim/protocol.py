@@ -18,15 +18,20 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
 from grace_dsl.runtime.library import Concept
 from grace_dsl.runtime.verify import draw_params, scaled_specs
 from grace_dsl.sim.records import EpisodeConfig, Task
+
+if TYPE_CHECKING:
+    from grace_dsl.runtime.concept import ParamSpec
 
 MOVED = 0.01  # m or rad: the lenient criterion
 OPEN_GOAL = 0.5  # strict open: at least this fraction of the range
@@ -34,7 +39,7 @@ CLOSE_GOAL = 0.05  # strict close: at most this fraction of the range
 P_CLOSED = 0.5  # the paper's chance of a closed start
 AZIMUTH = (0.0, 360.0)  # degrees
 ELEVATION = (30.0, 60.0)  # degrees
-DRAW_ATTEMPTS = 50  # parameter draws tried before a draw counts as invalid
+DRAW_ATTEMPTS = 50  # uniform parameter draws, then as many repaired ones (``draw_valid``)
 # Parameters that say a part stands alone (no host around it), as every episode places it: a
 # door leaf's or a drawer's free edge is reachable, so it is not drawn.
 ALONE: dict[str, Any] = {"free_edge": 1}
@@ -102,7 +107,9 @@ def task_action(concept: Concept, task: Task) -> TaskAction:
 def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
     """Parameters (valid for the concept's requirements), initial joint value and camera.
 
-    Raises ``RequirementError`` when no draw in ``DRAW_ATTEMPTS`` satisfies the requirements."""
+    Uniform draws come first, so an episode keeps the draw it had before repairs existed; only
+    a concept whose requirements reject ``DRAW_ATTEMPTS`` uniform draws in a row gets a repaired
+    one. Raises ``RequirementError`` when no draw of either kind satisfies the requirements."""
     rng = episode_rng(config, seed)
     lo_s, hi_s = config.scale
     scale = float(rng.uniform(lo_s, hi_s)) if hi_s > lo_s else float(lo_s)
@@ -111,9 +118,12 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
     specs = scaled_specs(concept, scale)
     ranges = "valid" if scale != 1.0 or config.ranges == "valid" else "typical"
     action = task_action(concept, config.task)
-    for _ in range(DRAW_ATTEMPTS):
-        params = draw_params(concept, rng, specs)
-        params.update({k: v for k, v in ALONE.items() if k in params})
+    for attempt in range(2 * DRAW_ATTEMPTS):
+        params = (
+            _alone(draw_params(concept, rng, specs))
+            if attempt < DRAW_ATTEMPTS
+            else draw_valid(concept, rng, specs, _draw_alone, ranges)
+        )
         try:
             inst = concept.instantiate(ranges=ranges, params=params)
         except RequirementError:
@@ -122,9 +132,21 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
         q0, closed = initial_joint(config.task, lo, hi, rng)
         return Draw(params, scale, q0, closed, draw_camera(rng))
     raise RequirementError(
-        f"{concept.name}: no parameter draw in {DRAW_ATTEMPTS} satisfied the requirements "
-        f"at scale {scale:g}"
+        f"{concept.name}: no parameter draw in {DRAW_ATTEMPTS} uniform and {DRAW_ATTEMPTS} "
+        f"repaired tries satisfied the requirements at scale {scale:g}"
     )
+
+
+def _alone(params: dict[str, Any]) -> dict[str, Any]:
+    params.update({k: v for k, v in ALONE.items() if k in params})
+    return params
+
+
+def _draw_alone(
+    concept: Concept, rng: np.random.Generator, specs: Sequence[ParamSpec]
+) -> dict[str, Any]:
+    """``draw_params`` with the parameters a part standing alone pins (for ``draw_valid``)."""
+    return _alone(draw_params(concept, rng, specs))
 
 
 def initial_joint(task: Task, lo: float, hi: float, rng: np.random.Generator) -> tuple[float, bool]:

@@ -8,6 +8,7 @@ import pytest
 import grace_dsl as eac
 from grace_dsl.runtime.errors import UnknownNameError
 from grace_dsl.sim.protocol import (
+    ALONE,
     CLOSE_GOAL,
     OPEN_GOAL,
     draw_episode,
@@ -97,3 +98,19 @@ def test_strict_success_on_the_range_fractions() -> None:
     assert strict_success("close", 0.05, 0.0, 1.0)
     assert not strict_success("close", 0.06, 0.0, 1.0)
     assert strict_success("close", 0.2 + 0.04, 0.2, 1.2)
+
+
+@pytest.mark.slow
+def test_a_concept_that_rejects_uniform_draws_gets_a_repaired_one(lib: eac.Library) -> None:
+    """Drawer seeds 22 and 71 (open) met no requirement in 50 uniform draws (``invalid_draw``
+    in 3 of 100 episodes); the repaired draw that follows is valid and still stands alone."""
+    concept = lib["Drawer"]
+    config = EpisodeConfig("Drawer", "open")
+    names = {p.name for p in concept.params}
+    for seed in (22, 71):
+        d = draw_episode(config, concept, seed)
+        inst = concept.instantiate(params=d.params)  # raises if a requirement fails
+        assert set(d.params) == names
+        assert d.params["free_edge"] == ALONE["free_edge"]
+        lo, hi = inst.joint_limits()["slide"]
+        assert lo <= d.q_initial <= lo + OPEN_GOAL * (hi - lo)
