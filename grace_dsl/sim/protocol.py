@@ -26,6 +26,7 @@ import numpy as np
 
 from grace_dsl.runtime.draws import draw_valid
 from grace_dsl.runtime.errors import ParameterError, RequirementError, UnknownNameError
+from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Concept
 from grace_dsl.runtime.verify import draw_params, scaled_specs
 from grace_dsl.sim.records import EpisodeConfig, Task
@@ -40,6 +41,7 @@ P_CLOSED = 0.5  # the paper's chance of a closed start
 AZIMUTH = (0.0, 360.0)  # degrees
 ELEVATION = (30.0, 60.0)  # degrees
 DRAW_ATTEMPTS = 50  # uniform parameter draws, then as many repaired ones (``draw_valid``)
+SCALE_ATTEMPTS = 8  # scales drawn in a size study before no valid draw is declared
 # Parameters that say a part stands alone (no host around it), as every episode places it: a
 # door leaf's or a drawer's free edge is reachable, so it is not drawn.
 ALONE: dict[str, Any] = {"free_edge": 1}
@@ -109,15 +111,34 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
 
     Uniform draws come first, so an episode keeps the draw it had before repairs existed; only
     a concept whose requirements reject ``DRAW_ATTEMPTS`` uniform draws in a row gets a repaired
-    one. Raises ``RequirementError`` when no draw of either kind satisfies the requirements."""
+    one. In a size study, a scale at which no draw of either kind meets the requirements is
+    drawn again (up to ``SCALE_ATTEMPTS`` scales): the study covers the sizes the requirements
+    allow. Raises ``RequirementError`` when no draw satisfies the requirements."""
     rng = episode_rng(config, seed)
     lo_s, hi_s = config.scale
-    scale = float(rng.uniform(lo_s, hi_s)) if hi_s > lo_s else float(lo_s)
-    if not (math.isfinite(scale) and scale > 0):
-        raise ParameterError(f"scale must be a range of factors > 0, got {config.scale!r}")
-    specs = scaled_specs(concept, scale)
-    ranges = "valid" if scale != 1.0 or config.ranges == "valid" else "typical"
     action = task_action(concept, config.task)
+    for _ in range(SCALE_ATTEMPTS if hi_s > lo_s else 1):
+        scale = float(rng.uniform(lo_s, hi_s)) if hi_s > lo_s else float(lo_s)
+        if not (math.isfinite(scale) and scale > 0):
+            raise ParameterError(f"scale must be a range of factors > 0, got {config.scale!r}")
+        found = _valid_draw(concept, rng, scale, config.ranges)
+        if found is not None:
+            params, inst = found
+            lo, hi = inst.joint_limits()[action.joint]
+            q0, closed = initial_joint(config.task, lo, hi, rng)
+            return Draw(params, scale, q0, closed, draw_camera(rng))
+    raise RequirementError(
+        f"{concept.name}: no parameter draw in {DRAW_ATTEMPTS} uniform and {DRAW_ATTEMPTS} "
+        f"repaired tries satisfied the requirements at scale {scale:g}"
+    )
+
+
+def _valid_draw(
+    concept: Concept, rng: np.random.Generator, scale: float, ranges: str
+) -> tuple[dict[str, Any], Instance] | None:
+    """A draw at ``scale`` that meets the requirements and its instance, or None."""
+    specs = scaled_specs(concept, scale)
+    ranges = "valid" if scale != 1.0 or ranges == "valid" else "typical"
     for attempt in range(2 * DRAW_ATTEMPTS):
         params = (
             _alone(draw_params(concept, rng, specs))
@@ -125,16 +146,10 @@ def draw_episode(config: EpisodeConfig, concept: Concept, seed: int) -> Draw:
             else draw_valid(concept, rng, specs, _draw_alone, ranges)
         )
         try:
-            inst = concept.instantiate(ranges=ranges, params=params)
+            return params, concept.instantiate(ranges=ranges, params=params)
         except RequirementError:
             continue
-        lo, hi = inst.joint_limits()[action.joint]
-        q0, closed = initial_joint(config.task, lo, hi, rng)
-        return Draw(params, scale, q0, closed, draw_camera(rng))
-    raise RequirementError(
-        f"{concept.name}: no parameter draw in {DRAW_ATTEMPTS} uniform and {DRAW_ATTEMPTS} "
-        f"repaired tries satisfied the requirements at scale {scale:g}"
-    )
+    return None
 
 
 def _alone(params: dict[str, Any]) -> dict[str, Any]:

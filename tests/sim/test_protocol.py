@@ -12,6 +12,7 @@ from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
     OPEN_GOAL,
     draw_episode,
+    episode_rng,
     initial_joint,
     lenient_success,
     strict_success,
@@ -114,3 +115,16 @@ def test_a_concept_that_rejects_uniform_draws_gets_a_repaired_one(lib: eac.Libra
         assert d.params["free_edge"] == ALONE["free_edge"]
         lo, hi = inst.joint_limits()["slide"]
         assert lo <= d.q_initial <= lo + OPEN_GOAL * (hi - lo)
+
+
+@pytest.mark.slow
+def test_a_scale_the_requirements_rule_out_is_drawn_again(lib: eac.Library) -> None:
+    """DoorLeaf at 0.30x-0.33x of its default size meets no requirement (the handle no longer
+    fits); a size study draws another scale instead of recording ``invalid_draw``."""
+    concept = lib["DoorLeaf"]
+    config = EpisodeConfig("DoorLeaf", "open", scale=(0.3, 2.0), ranges="valid")
+    first_scale = float(episode_rng(config, 1693461440).uniform(0.3, 2.0))
+    assert first_scale < 0.33  # the draw that used to be invalid
+    d = draw_episode(config, concept, 1693461440)
+    assert 0.3 <= d.scale <= 2.0 and d.scale != first_scale
+    concept.instantiate(ranges="valid", params=d.params)  # raises if a requirement fails
