@@ -77,7 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         default="mujoco",
         help="the physics engine (sapien: the optional extra, PhysX on CPU)",
     )
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--seed", type=int, default=0, help="episode i has seed SEED * 1,000,000 + i (default 0)"
+    )
     ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
     ap.add_argument(
         "--self-collision",
