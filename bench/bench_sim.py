@@ -13,8 +13,11 @@ and lenient success per concept and task, and the failure reasons.
     python bench/bench_sim.py --engine sapien    # the same episodes on SAPIEN 3's PhysX (CPU)
     python bench/bench_sim.py --compare mujoco.json sapien.json   # the two side by side
 
-Episode i of every category and task has seed ``--seed + i``; where it runs (``--workers``)
-does not change its record.
+Episode i of every category and task has seed ``--seed * SEED_STRIDE + i`` (``episode_seed``):
+``--seed 0`` gives seeds 0, 1, 2 ... as every figure recorded so far, and another ``--seed`` a
+block of its own that no other ``--seed`` reaches (``--seed + i`` made ``--seed 1`` rerun
+episodes 1 ... of ``--seed 0``). Where an episode runs (``--workers``) does not change its
+record.
 """
 
 from __future__ import annotations
@@ -48,6 +51,19 @@ CATEGORIES = (
 )
 SMALL = ("CabinetDrawer", "HingedCabinet", "Microwave")
 TASKS = ("open", "close")
+#: Seeds per ``--seed``: a run of at most this many episodes per category and task never meets
+#: another ``--seed``'s episodes.
+SEED_STRIDE = 1_000_000
+
+
+def episode_seed(seed: int, index: int) -> int:
+    """The seed of episode ``index`` (of every category and task) in a run with ``--seed``."""
+    if seed < 0 or not 0 <= index < SEED_STRIDE:
+        raise ValueError(
+            f"--seed must be >= 0 and an episode index in [0, {SEED_STRIDE}), "
+            f"got --seed {seed}, index {index}"
+        )
+    return seed * SEED_STRIDE + index
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -61,7 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         default="mujoco",
         help="the physics engine (sapien: the optional extra, PhysX on CPU)",
     )
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--seed", type=int, default=0, help="episode i has seed SEED * 1,000,000 + i (default 0)"
+    )
     ap.add_argument("--workers", type=int, default=1, help="episode processes (default 1)")
     ap.add_argument(
         "--self-collision",
@@ -231,13 +249,19 @@ def run_all(
 ) -> list[EpisodeRecord]:
     """Every (category, task, episode) through the runner (``workers`` processes), with a
     progress bar; records in the order asked."""
-    jobs = [
-        (EpisodeConfig(c, t, hand=hand, engine=engine), seed + i)  # type: ignore[arg-type]
+    return run_episodes(plan(categories, episodes, hand, seed, engine), workers=workers)
+
+
+def plan(
+    categories: tuple[str, ...], episodes: int, hand: str, seed: int, engine: str = "mujoco"
+) -> list[tuple[EpisodeConfig, int]]:
+    """The (config, seed) of every episode of a run, category by category, task, index."""
+    return [
+        (EpisodeConfig(c, t, hand=hand, engine=engine), episode_seed(seed, i))  # type: ignore[arg-type]
         for c in categories
         for t in TASKS
         for i in range(episodes)
     ]
-    return run_episodes(jobs, workers=workers)
 
 
 def summarize(records: list[EpisodeRecord]) -> list[dict[str, Any]]:

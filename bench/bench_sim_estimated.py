@@ -13,8 +13,8 @@ refused, and the accepted estimates' median errors (worst length, pose).
     python bench/bench_sim_estimated.py --single-view        # the protocol's view only
 
 ``--log`` appends one JSON line per record as it finishes; a run given the same log skips the
-episodes it already holds (resume after a stop). Episode i of every category and task has seed
-``--seed + i``, as ``bench/bench_sim.py``.
+episodes it already holds (resume after a stop). Episode i of every category and task has
+``bench/bench_sim.py``'s seed (``episode_seed``: ``--seed 0`` gives 0, 1, 2 ...).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "sim_estimated.json"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sim import CATEGORIES, SMALL, TASKS  # noqa: E402  (the flying Panda's categories)
+from bench_sim import CATEGORIES, SMALL, TASKS, episode_seed  # noqa: E402  (the flying Panda's categories)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -60,7 +60,12 @@ def main(argv: list[str] | None = None) -> int:
     min_confidence = MIN_CONFIDENCE if args.min_confidence is None else args.min_confidence
     started = time.perf_counter()
     done = _read_log(args.log)
-    jobs = [(c, t, args.seed + i) for c in categories for t in TASKS for i in range(episodes)]
+    jobs = [
+        (c, t, episode_seed(args.seed, i))
+        for c in categories
+        for t in TASKS
+        for i in range(episodes)
+    ]
     records = [done[j] for j in jobs if j in done]
     todo = [j for j in jobs if j not in done]
     for category, task, seed in _progress(todo):

@@ -24,7 +24,13 @@ checks all of it over the grasp's free-parameter range (and spins, for symmetric
 
 A push may be made with the fingertips, the side of a closed finger or the palm (``contacts``);
 the first of those that works is the option's ``contact``. Options are ordered feasible first,
-then pinch, hook, push/press, then by rotation. Among poses whose rotation is within ``TIE`` of the
+then pinch, hook, push/press, then by the order the action's ``using`` lists them (its author's
+preference: a concept lists the grasp made for the hand, a handle, before a fallback such as a
+free edge; ``also`` grasps after), then by rotation. The mode comes before the listed order
+because it is physics (a pinch holds both ways, a hook or a push one way); the listed order
+before the rotation because a small turn of the hand says nothing about how well the grip
+holds (an edge pinched from above turns the Panda less than its handle at the front, and slips
+where the edge's place is estimated). Among poses whose rotation is within ``TIE`` of the
 best, the one nearest the grasp's default free parameters wins (the default is always tried). When
 the geometry fails at the best ``GEOMETRY_TRIES`` poses, ``SEARCH_TRIES`` more, spread over the
 free parameters (and spins) away from those tried, are checked, nearest the default first: a
@@ -35,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -92,9 +98,11 @@ class Option:
     turn: float = 0.0  # radians between its closing axis and its required closing line (0: any)
     contact: str = ""  # pads (pinch), fingers (hook), tip, side or palm (push)
     hand_pose: np.ndarray | None = field(default=None, compare=False, repr=False)
+    listed: int = 0  # place in the action's ``using`` list (0 for all when it has none)
 
-    def sort_key(self) -> tuple[int, int, float]:
-        return (0 if self.feasible else 1, MODE_ORDER.get(self.mode, 3), self.rotation)
+    def sort_key(self) -> tuple[int, int, int, float]:
+        feasible = 0 if self.feasible else 1
+        return (feasible, MODE_ORDER.get(self.mode, 3), self.listed, self.rotation)
 
 
 def rank(
@@ -114,8 +122,16 @@ def rank(
     ctx = _Context(inst, spec, gripper, reference, to)
     names = candidates(inst, spec)
     names += [g for g in also if g not in names and g in inst.grasp_names]
-    options = [_judge_in(ctx, g, samples) for g in names]
+    options = [replace(_judge_in(ctx, g, samples), listed=listed(spec, g)) for g in names]
     return tuple(sorted(options, key=Option.sort_key))
+
+
+def listed(action: ActionSpec, grasp: str) -> int:
+    """Where ``grasp`` stands in the action's ``using`` list: its author's order of preference
+    among grasps of one mode; a grasp it does not list (an ``also``) after those it does, and 0
+    for every grasp of an action without a list (the rotation alone decides there)."""
+    using = list(action.using)
+    return using.index(grasp) if grasp in using else len(using)
 
 
 def candidates(inst: Instance, action: ActionSpec) -> list[str]:

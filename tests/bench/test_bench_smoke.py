@@ -29,6 +29,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_perception.py",
         "bench_plan.py",
         "bench_rank_agreement.py",
+        "bench_rank_order.py",
         "bench_render.py",
         "bench_repeat.py",
         "bench_runtime.py",

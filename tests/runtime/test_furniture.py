@@ -122,3 +122,43 @@ def test_a_recessed_pull_is_opened_by_the_free_edge_pinched(
     )
     assert edge not in framed.grasp_names
     assert all(o.grasp != edge for o in framed.rank("open", panda))
+
+
+@pytest.mark.parametrize(
+    "name, edge, handle",
+    [
+        ("Drawer", "pinch_top[0]", "handle@bar.pull"),
+        ("DoorLeaf", "pinch_edge[0]", "handle@bar.pull"),
+    ],
+)
+def test_the_handle_listed_first_beats_a_free_edge_that_turns_the_hand_less(
+    lib, name: str, edge: str, handle: str
+) -> None:  # type: ignore[no-untyped-def]
+    """Alone, a part with a bar handle offers both the handle and its free edge, both pinches
+    the Panda can make; where the edge needs less turn of the hand than the handle (a drawer's
+    top edge from above), the action's ``using`` order (the handle first) still decides."""
+    panda = Gripper.panda()
+    inst = lib[name].instantiate(pose=_facing_robot(), handle_kind="bar")
+    options = inst.rank("open", panda)
+    by_name = {o.grasp: o for o in options}
+    assert by_name[handle].feasible and by_name[edge].feasible
+    assert by_name[handle].mode == by_name[edge].mode == "pinch"
+    assert by_name[handle].listed < by_name[edge].listed
+    assert options[0].grasp == handle
+    if name == "Drawer":  # the case that made the rule: rotation alone would pick the edge
+        assert by_name[edge].rotation < by_name[handle].rotation
+
+
+def test_rank_orders_feasible_then_mode_then_listed_then_rotation() -> None:
+    """The sort key, on options made by hand: a listed-earlier grasp beats a smaller rotation,
+    but not a better mode, and never feasibility."""
+    from grace_dsl.runtime.manipulation import Option
+
+    edge = Option("edge", "pinch", True, 0.0, rotation=0.1, listed=3)
+    handle = Option("handle", "pinch", True, 0.0, rotation=1.5, listed=0)
+    hook = Option("hook", "hook", True, 0.0, rotation=0.0, listed=1)
+    blocked = Option("blocked", "pinch", False, 0.0, rotation=0.0, listed=0)
+    got = sorted([blocked, hook, edge, handle], key=Option.sort_key)
+    assert [o.grasp for o in got] == ["handle", "edge", "hook", "blocked"]
+    tied = Option("other", "pinch", True, 0.0, rotation=0.2, listed=3)
+    assert sorted([tied, edge], key=Option.sort_key)[0] is edge  # same place: rotation decides
