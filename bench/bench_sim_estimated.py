@@ -42,6 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--single-view", action="store_true", help="refuse instead of looking again")
     ap.add_argument("--looks", type=int, default=None, help="at most this many looks (default 3)")
+    ap.add_argument(
+        "--no-fuse", action="store_true", help="fit each look alone (no fused fit of the looks)"
+    )
     ap.add_argument("--min-confidence", type=float, default=None, help="refuse below (0.7)")
     ap.add_argument("--small", action="store_true", help="3 categories, 2 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
@@ -64,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     records = [done[j] for j in jobs if j in done]
     todo = [j for j in jobs if j not in done]
     for category, task, seed in _progress(todo):
-        pair = run_pair(category, task, seed, looks, min_confidence)
+        pair = run_pair(category, task, seed, looks, min_confidence, not args.no_fuse)
         records.append(pair)
         if args.log is not None:
             args.log.parent.mkdir(parents=True, exist_ok=True)
@@ -79,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         "seed": args.seed,
         "looks": looks,
         "min_confidence": min_confidence,
+        "fused": not args.no_fuse,
         "wall_seconds": round(time.perf_counter() - started, 1),
         "summary": rows,
     }
@@ -88,7 +92,12 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_pair(
-    category: str, task: str, seed: int, looks: int = 3, min_confidence: float = 0.7
+    category: str,
+    task: str,
+    seed: int,
+    looks: int = 3,
+    min_confidence: float = 0.7,
+    fused: bool = True,
 ) -> dict[str, Any]:
     """The oracle and the estimated episode of one (category, task, seed)."""
     from grace_dsl.agent.estimated_episode import estimated_episode
@@ -98,7 +107,7 @@ def run_pair(
     base = EpisodeConfig(category, task)  # type: ignore[arg-type]
     oracle = guarded(_oracle, base, seed)
     est_config = EpisodeConfig(category, task, mode="estimated")  # type: ignore[arg-type]
-    run = partial(estimated_episode, looks=looks, min_confidence=min_confidence)
+    run = partial(estimated_episode, looks=looks, min_confidence=min_confidence, fused=fused)
     estimated = guarded(run, est_config, seed)
     return {
         "concept": category,
