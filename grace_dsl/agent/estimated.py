@@ -18,6 +18,11 @@ error carrying the estimate): the agent never acts on a model it does not trust;
 another view or reports the refusal. Parameters perception does not estimate (integers, choices,
 flags: the concept's structure) are given (``fixed_params``: the scene's or the draw's, else the
 concept's defaults) and held fixed in the fit.
+
+Several looks (``fuse``): every look keeps its labelled cloud in the world frame with its
+camera (``Sight.cloud``); from the second look on, all the looks taken are fitted at once
+(``eac.estimate(..., looks=)``: one set of parameters, each camera's free space and outline),
+started from the single looks' fits, and that estimate is refused or accepted like one look's.
 """
 
 from __future__ import annotations
@@ -582,6 +587,45 @@ def fuse(
             got,
         )
     return got
+
+
+#: radians: the grid a frameless leaf's joint is chosen on (``frameless_joint``)
+FRAMELESS_STEP = math.radians(0.5)
+
+
+def frameless_joint(
+    concept: Concept, got: Perceived, joint: str, upright: np.ndarray
+) -> Perceived | None:
+    """A frameless leaf's joint from the object's known base orientation, or None when the
+    concept has geometry off the joint's moving link (then the view shows the joint itself).
+
+    Why: a door leaf with no frame looks the same turned about its hinge as with its hinge
+    turned; the fit's joint and the base's rotation trade off freely, and an estimate 110 deg
+    off came back at confidence 1.00. The leaf's place in the world is what the view fixes, so
+    it is kept, and of the (base pose, joint) pairs that put the leaf there the one whose base
+    rotation is nearest ``upright`` (3x3: how the scene or the protocol stands the object) is
+    taken."""
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    child = str(concept.joints[joint]["child"])
+    inst = got.instance(concept)
+    tree = ShapeTree(inst)
+    if any(tree.shapes[n]["link"] != child for n in tree.outermost()):
+        return None
+    leaf = inst.link_pose(child)
+    lo, hi = inst.joint_limits()[joint]
+    base = concept.instantiate(params=dict(got.params))
+    best: tuple[float, float, np.ndarray] | None = None
+    for q in np.arange(lo, hi + 1e-9, FRAMELESS_STEP):
+        rel = base.with_joints({**got.joints, joint: float(q)}).link_pose(child)
+        pose = leaf @ np.linalg.inv(rel)
+        cos = (float(np.trace(pose[:3, :3].T @ np.asarray(upright, float))) - 1) / 2
+        angle = math.acos(max(-1.0, min(1.0, cos)))
+        if best is None or angle < best[0]:
+            best = (angle, float(q), pose)
+    if best is None:
+        return None
+    return replace(got, pose=best[2], joints={**got.joints, joint: best[1]})
 
 
 def _seen(got: Perceived, sight: Sight) -> Perceived:

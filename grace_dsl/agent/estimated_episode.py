@@ -48,6 +48,7 @@ from grace_dsl.agent.estimated import (
     View,
     fixed_params,
     frame_of,
+    frameless_joint,
     fuse,
     look,
     look_around,
@@ -56,7 +57,7 @@ from grace_dsl.agent.estimated import (
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.episode import _early, execute, outcome_record, start_episode
+from grace_dsl.sim.episode import Z_UP, _early, execute, outcome_record, start_episode
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.scene import Scene
 from grace_dsl.sim.world import World
@@ -76,9 +77,12 @@ def estimated_episode(
     min_confidence: float = MIN_CONFIDENCE,
     looks: int = LOOKS,
     fused: bool = True,
+    frameless: bool = True,
 ) -> EpisodeRecord:
     """The episode, with the agent's confidence threshold, its number of looks (1: the
-    protocol's view only) and whether it fits the looks together (``fused``) as arguments."""
+    protocol's view only), whether it fits the looks together (``fused``) and whether a
+    frameless leaf's joint comes from the protocol's upright base (``frameless``,
+    ``estimated.frameless_joint``) as arguments."""
     _check(config)
     started = time.perf_counter()
     start = start_episode(config, seed, started)
@@ -93,6 +97,11 @@ def estimated_episode(
         early = _early(config, seed, task, "no_feasible_grasp", _refused(account), started,
                        draw, true)  # fmt: skip
         return replace(early, estimate={"looks": account, "refused": True})
+    if frameless:  # a leaf with no frame: its joint from the protocol's upright base
+        leaf = frameless_joint(concept, got, task.joint, Z_UP[:3, :3])
+        if leaf is not None:
+            got = leaf
+            account = [*account, {"frameless_joint": round(float(got.joints[task.joint]), 4)}]
     errors = estimate_errors(true, got, task.joint)
     believed = _believed(got, concept, ranges)
     if isinstance(believed, str):
