@@ -159,7 +159,7 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
         est = sum(p["estimated"]["strict"] for p in ps) / n
         estimates = [p["estimated"]["estimate"] for p in ps]
         accepted = [e for e in estimates if e and not e["refused"]]
-        looks = [len(p["estimated"]["estimate"].get("looks", [])) for p in ps]
+        looks = [_camera_looks(p["estimated"]["estimate"] or {}) for p in ps]
         rows.append(
             {
                 "concept": concept,
@@ -182,6 +182,11 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def _camera_looks(estimate: dict[str, Any]) -> int:
+    """The camera looks taken (a fused fit of them is an entry of the account, not a look)."""
+    return sum(1 for a in estimate.get("looks", []) if "fused" not in a)
 
 
 def _fused(estimate: dict[str, Any]) -> bool:

@@ -615,16 +615,18 @@ def frameless_joint(
     leaf = inst.link_pose(child)
     lo, hi = inst.joint_limits()[joint]
     base = concept.instantiate(params=dict(got.params))
-    best: tuple[float, float, np.ndarray] | None = None
-    for q in np.arange(lo, hi + 1e-9, FRAMELESS_STEP):
-        rel = base.with_joints({**got.joints, joint: float(q)}).link_pose(child)
+
+    def off(q: float) -> tuple[float, float, np.ndarray]:
+        rel = base.with_joints({**got.joints, joint: q}).link_pose(child)
         pose = leaf @ np.linalg.inv(rel)
         cos = (float(np.trace(pose[:3, :3].T @ np.asarray(upright, float))) - 1) / 2
-        angle = math.acos(max(-1.0, min(1.0, cos)))
-        if best is None or angle < best[0]:
-            best = (angle, float(q), pose)
-    if best is None:
-        return None
+        return math.acos(max(-1.0, min(1.0, cos))), q, pose
+
+    coarse = 10 * FRAMELESS_STEP  # then the grid's step within one coarse step of the best
+    best = min((off(float(q)) for q in np.arange(lo, hi + 1e-9, coarse)), key=lambda b: b[0])
+    near = np.arange(best[1] - coarse, best[1] + coarse + 1e-9, FRAMELESS_STEP)
+    fine = [off(float(q)) for q in near if lo <= q <= hi]
+    best = min([best, *fine], key=lambda b: b[0])
     return replace(got, pose=best[2], joints={**got.joints, joint: best[1]})
 
 

@@ -97,12 +97,13 @@ def estimated_episode(
         early = _early(config, seed, task, "no_feasible_grasp", _refused(account), started,
                        draw, true)  # fmt: skip
         return replace(early, estimate={"looks": account, "refused": True})
-    if frameless:  # a leaf with no frame: its joint from the protocol's upright base
-        leaf = frameless_joint(concept, got, task.joint, Z_UP[:3, :3])
-        if leaf is not None:
-            got = leaf
-            account = [*account, {"frameless_joint": round(float(got.joints[task.joint]), 4)}]
+    leaf = frameless_joint(concept, got, task.joint, Z_UP[:3, :3]) if frameless else None
+    if leaf is not None:  # a leaf with no frame: its joint from the protocol's upright base
+        fitted = round(float(got.joints.get(task.joint, 0.0)), 4)
+        got = leaf
     errors = estimate_errors(true, got, task.joint)
+    if leaf is not None:
+        errors["frameless_joint"] = {"fitted": fitted, "chosen": round(got.joints[task.joint], 4)}
     believed = _believed(got, concept, ranges)
     if isinstance(believed, str):
         early = _early(config, seed, task, "no_feasible_grasp", believed, started, draw, true)

@@ -129,8 +129,8 @@ def estimate_looks(
     """One estimate from every look: ``estimate(concept, looks=...)``. The pose is the concept
     in the looks' shared frame. Starts: ``pose_hint`` with ``init`` (an ``Estimate`` or
     parameter values, in that frame), each of ``starts`` (estimates in that frame: single
-    looks' fits), or, when none is given, the fit of the look with the most points alone in
-    its camera's frame (its facing-plane starts), carried into the shared frame."""
+    looks' fits), or, when none is given, each look's fit alone in its camera's frame (its
+    facing-plane starts), carried into the shared frame; the fused stages then screen them."""
     from grace_dsl.perception.estimate import confidence, estimate
     from grace_dsl.perception.fit import labelled_fit
 
@@ -150,13 +150,13 @@ def estimate_looks(
         given = dict(init)
         params = given if set(given) <= names else join_params(concept, given, {})
     extra = [_start(concept, e) for e in starts]
-    if hint is None and not extra:  # the largest look alone, from its own camera
-        big = max(checked, key=lambda c: len(c.points))
-        inv = np.linalg.inv(big.camera)
-        local = big.points @ inv[:3, :3].T + inv[:3, 3]
-        named = list(big.labels) if big.labelled else None
-        alone = estimate(concept, local, init=params, seed=seed, labels=named)
-        extra.append(_start(concept, alone, big.camera))
+    if hint is None and not extra:  # each look alone, from its own camera: one start each
+        for look in checked:
+            inv = np.linalg.inv(look.camera)
+            local = look.points @ inv[:3, :3].T + inv[:3, 3]
+            named = list(look.labels) if look.labelled else None
+            alone = estimate(concept, local, init=params, seed=seed, labels=named)
+            extra.append(_start(concept, alone, look.camera))
     points = np.concatenate([c.points for c in checked])
     labels = np.concatenate([c.labels for c in checked])
     result = labelled_fit(

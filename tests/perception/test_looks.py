@@ -13,9 +13,10 @@ from grace_dsl.perception.estimate import estimate
 from grace_dsl.perception.labels import LabelError
 from grace_dsl.perception.looks import Look, LookError, check_looks
 from grace_dsl.perception.render import InstanceSDF, bounding_sphere, render
+from grace_dsl.perception.views import split_params
 
-FRONT = (0.0, 0.0)  # azimuth, elevation (deg): level, from the front
-SIDE = (75.0, 10.0)
+FRONT = (0.0, 10.0)  # azimuth, elevation (deg): nearly level, from the front
+SIDE = (75.0, 10.0)  # from the side
 
 
 def _square(z: float = 2.0) -> np.ndarray:
@@ -70,20 +71,27 @@ def _shot(inst, az: float, el: float):  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.slow
-def test_two_looks_recover_the_depth_one_front_look_cannot_see(lib) -> None:
-    """A HingedCabinet 400 mm deep (the default: 560 mm) seen level from the front shows no
-    depth at all; a look from the side shows it. Fitted together: the depth, the handle and
-    the pose from both."""
+def test_two_looks_recover_what_neither_look_alone_does(lib) -> None:
+    """A HingedCabinet 400 mm deep (the default: 560 mm), noise-free. Nearly level from the
+    front its depth is a sliver of the top: fitted alone, confidently 100 mm off (measured)
+    with the origin 50 mm off. From the side its width and the handle's inset are foreshortened
+    (10 mm off each). Fitted together, every length is within 8 mm and the origin within 6."""
     concept = lib["HingedCabinet"]
     inst = concept.instantiate(params={"size": (0.5, 0.8, 0.4)})
-    front, side = _shot(inst, FRONT[0], FRONT[1]), _shot(inst, SIDE[0], SIDE[1])
-    inv = np.linalg.inv(front[1])
-    alone = estimate(concept, to_world(front[0], inv), labels=front[2])
-    depth_alone = abs(alone.params["size[2]"] - 0.4) * 1000
-    est = estimate(concept, looks=[Look(*front), Look(*side)])
-    depth = abs(est.params["size[2]"] - 0.4) * 1000
-    width, height = (abs(est.params[f"size[{k}]"] - inst.params["size"][k]) * 1000 for k in (0, 1))
-    origin = float(np.linalg.norm(est.pose[:3, 3] - inst.pose[:3, 3])) * 1000
-    assert depth_alone > 60, depth_alone
-    assert depth < 10 and width < 10 and height < 10, (depth, width, height)
-    assert origin < 10 and est.confidence > 0.8, (origin, est.confidence)
+    truth = {k: v for k, v in split_params(concept, inst.params)[0].items()}
+    looks = [Look(*_shot(inst, *FRONT)), Look(*_shot(inst, *SIDE))]
+
+    def errors(est) -> dict[str, float]:  # type: ignore[no-untyped-def]
+        return {k: 1000 * abs(est.params[k] - v) for k, v in truth.items()}
+
+    alone = []
+    for look in looks:
+        inv = np.linalg.inv(look.camera)
+        alone.append(errors(estimate(concept, to_world(look.points, inv), labels=look.labels)))
+    assert alone[0]["size[2]"] > 50, alone[0]  # the depth, from the front
+    assert max(alone[1]["size[0]"], alone[1]["handle_inset"]) > 7, alone[1]  # from the side
+    est = estimate(concept, looks=looks)
+    both = errors(est)
+    origin = 1000 * float(np.linalg.norm(est.pose[:3, 3] - inst.pose[:3, 3]))
+    assert max(both.values()) < 8, both
+    assert origin < 6 and est.confidence > 0.8, (origin, est.confidence)
