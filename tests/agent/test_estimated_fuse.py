@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import grace_dsl as eac
 from grace_dsl.agent.estimated import (
@@ -53,6 +54,7 @@ def test_look_around_fits_the_looks_together_from_the_second_on() -> None:
     assert got is not None and got.source == "fit" and calls == []  # the first look stands
 
 
+@pytest.mark.slow
 def test_a_frameless_leafs_joint_comes_from_the_upright_base(lib: eac.Library) -> None:
     """A door leaf fitted with its base turned 0.5 rad about the hinge and the joint turned
     back: the leaf is where it is, the pair is taken apart again from the upright base."""
