@@ -42,6 +42,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--single-view", action="store_true", help="refuse instead of looking again")
     ap.add_argument("--looks", type=int, default=None, help="at most this many looks (default 3)")
+    ap.add_argument(
+        "--no-fuse", action="store_true", help="fit each look alone (no fused fit of the looks)"
+    )
+    ap.add_argument(
+        "--no-frameless",
+        action="store_true",
+        help="take a frameless leaf's joint from its fit (not from the protocol's upright base)",
+    )
     ap.add_argument("--min-confidence", type=float, default=None, help="refuse below (0.7)")
     ap.add_argument("--small", action="store_true", help="3 categories, 2 episodes each")
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
@@ -69,7 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     records = [done[j] for j in jobs if j in done]
     todo = [j for j in jobs if j not in done]
     for category, task, seed in _progress(todo):
-        pair = run_pair(category, task, seed, looks, min_confidence)
+        pair = run_pair(
+            category, task, seed, looks, min_confidence, not args.no_fuse, not args.no_frameless
+        )
         records.append(pair)
         if args.log is not None:
             args.log.parent.mkdir(parents=True, exist_ok=True)
@@ -84,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         "seed": args.seed,
         "looks": looks,
         "min_confidence": min_confidence,
+        "fused": not args.no_fuse,
+        "frameless": not args.no_frameless,
         "wall_seconds": round(time.perf_counter() - started, 1),
         "summary": rows,
     }
@@ -93,7 +105,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_pair(
-    category: str, task: str, seed: int, looks: int = 3, min_confidence: float = 0.7
+    category: str,
+    task: str,
+    seed: int,
+    looks: int = 3,
+    min_confidence: float = 0.7,
+    fused: bool = True,
+    frameless: bool = True,
 ) -> dict[str, Any]:
     """The oracle and the estimated episode of one (category, task, seed)."""
     from grace_dsl.agent.estimated_episode import estimated_episode
@@ -103,7 +121,13 @@ def run_pair(
     base = EpisodeConfig(category, task)  # type: ignore[arg-type]
     oracle = guarded(_oracle, base, seed)
     est_config = EpisodeConfig(category, task, mode="estimated")  # type: ignore[arg-type]
-    run = partial(estimated_episode, looks=looks, min_confidence=min_confidence)
+    run = partial(
+        estimated_episode,
+        looks=looks,
+        min_confidence=min_confidence,
+        fused=fused,
+        frameless=frameless,
+    )
     estimated = guarded(run, est_config, seed)
     return {
         "concept": category,
@@ -140,7 +164,7 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
         est = sum(p["estimated"]["strict"] for p in ps) / n
         estimates = [p["estimated"]["estimate"] for p in ps]
         accepted = [e for e in estimates if e and not e["refused"]]
-        looks = [len(p["estimated"]["estimate"].get("looks", [])) for p in ps]
+        looks = [_camera_looks(p["estimated"]["estimate"] or {}) for p in ps]
         rows.append(
             {
                 "concept": concept,
@@ -154,6 +178,8 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "refused": sum(1 for p in ps if (p["estimated"]["estimate"] or {}).get("refused")),
                 "second_view": sum(1 for k in looks if k > 1),
                 "looks": sum(looks),
+                # pairs acted on an estimate of several looks fitted together
+                "fused": sum(1 for p in ps if _fused(p["estimated"]["estimate"] or {})),
                 "median_length_error_max_mm": _median(accepted, "length_error_max_mm"),
                 "median_pose_error_mm": _median(accepted, "pose_error_mm"),
                 "median_pose_error_deg": _median(accepted, "pose_error_deg"),
@@ -161,6 +187,17 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def _camera_looks(estimate: dict[str, Any]) -> int:
+    """The camera looks taken (a fused fit of them is an entry of the account, not a look)."""
+    return sum(1 for a in estimate.get("looks", []) if "fused" not in a)
+
+
+def _fused(estimate: dict[str, Any]) -> bool:
+    """Whether the accepted estimate came from a fused fit of several looks."""
+    looks = estimate.get("looks", [])
+    return bool(looks) and "fused" in looks[-1] and "refused" not in looks[-1]
 
 
 def _median(items: list[dict[str, Any]], key: str) -> float | None:
@@ -180,13 +217,16 @@ def _worst(items: list[dict[str, Any]], k: int = 3) -> dict[str, float]:
 
 
 def print_table(rows: list[dict[str, Any]]) -> None:
-    print(f"{'concept':14} {'n':>3} {'oracle':>7} {'estim':>6} {'diff':>6} {'refused':>7}  "
-          "median errors (worst length mm, pose mm/deg); estimated failures")  # fmt: skip
+    print(
+        f"{'concept':14} {'n':>3} {'oracle':>7} {'estim':>6} {'diff':>6} {'refused':>7} "
+        f"{'fused':>5}  median errors (worst length mm, pose mm/deg); estimated failures"
+    )
     for r in rows:
         reasons = ", ".join(f"{k} {v}" for k, v in sorted(r["reasons"].items()))
         print(
             f"{r['concept']:14} {r['episodes']:3d} {r['oracle_strict']:7.2f} "
-            f"{r['estimated_strict']:6.2f} {r['difference_points']:+6.1f} {r['refused']:7d}  "
+            f"{r['estimated_strict']:6.2f} {r['difference_points']:+6.1f} {r['refused']:7d} "
+            f"{r.get('fused', 0):5d}  "
             f"{r['median_length_error_max_mm']} mm, {r['median_pose_error_mm']} mm/"
             f"{r['median_pose_error_deg']} deg; {reasons}"
         )

@@ -18,6 +18,11 @@ error carrying the estimate): the agent never acts on a model it does not trust;
 another view or reports the refusal. Parameters perception does not estimate (integers, choices,
 flags: the concept's structure) are given (``fixed_params``: the scene's or the draw's, else the
 concept's defaults) and held fixed in the fit.
+
+Several looks (``fuse``): every look keeps its labelled cloud in the world frame with its
+camera (``Sight.cloud``); from the second look on, all the looks taken are fitted at once
+(``eac.estimate(..., looks=)``: one set of parameters, each camera's free space and outline),
+started from the single looks' fits, and that estimate is refused or accepted like one look's.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import numpy as np
 
 from grace_dsl.perception.camera import DepthNoise, back_project
 from grace_dsl.perception.errors import PerceptionError
+from grace_dsl.perception.looks import Look
 from grace_dsl.perception.render import DepthRender
 from grace_dsl.perception.segment import GroundTruthSegmenter
 from grace_dsl.perception.types import Estimate, Intrinsics, Segmenter
@@ -97,6 +103,9 @@ class Sight:
     handle_at: tuple[float, float, float] | None = None
     front: tuple[float, float, float] | None = None
     handle: int = -1  # the handle's pixels seen (-1: the concept has none)
+    # the look's labelled cloud in the world frame with its camera: what a fused fit takes
+    cloud: Look | None = field(default=None, compare=False, repr=False)
+    held: int = -1  # pixels of the link the task moves (-1: not asked for)
 
 
 @dataclass(frozen=True)
@@ -470,7 +479,9 @@ def look(
     held = cloud.owned_by(hold) if hold else np.zeros(len(cloud), bool)
     centre = (float(target[0]), float(target[1]), float(target[2]))
     handle_at = _centroid(cloud, cloud.on(PART), shot.camera_pose) if seen > 0 else None
-    sight = Sight(view, centre, handle_at, handle=seen)
+    world = Look(_to_world(cloud.points, shot.camera_pose), shot.camera_pose, cloud.labels)
+    n_held = int(held.sum()) if hold else -1
+    sight = Sight(view, centre, handle_at, handle=seen, cloud=world, held=n_held)
     for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
         if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
             why = (
@@ -498,6 +509,125 @@ def look(
             got,
         )
     return got
+
+
+def _to_world(points: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
+    pose = np.asarray(camera_pose, float)
+    return np.asarray(points, float) @ pose[:3, :3].T + pose[:3, 3]
+
+
+def fuse(
+    concept: Concept,
+    sights: Sequence[Sight],
+    guesses: Sequence[Perceived],
+    seed: int = 0,
+    min_confidence: float = MIN_CONFIDENCE,
+    fixed: Mapping[str, Any] | None = None,
+) -> Perceived:
+    """One estimate from every look taken (``eac.estimate(..., looks=)``: the clouds in the
+    world frame, free space and outline per camera), started from the single looks' fits
+    (``guesses``, the most confident first). Refused (``EstimateRefused``) like one look: too
+    few of the handle's or the moved link's pixels in all the looks together, a confidence
+    below ``min_confidence``, or a front that faces none of the cameras."""
+    from grace_dsl.perception.estimate import estimate
+    from grace_dsl.perception.views import join_params
+
+    clouds = [s.cloud for s in sights if s.cloud is not None]
+    views = " + ".join(_view(s.view) for s in sights)
+    if len(clouds) < 2:
+        raise EstimateRefused(f"{concept.name}: {len(clouds)} look(s) to fuse (2 needed)")
+    for what, counts in (
+        ("handle", [s.handle for s in sights]),
+        ("moved link", [s.held for s in sights]),
+    ):
+        if min(counts) >= 0 and sum(counts) < MIN_PART_POINTS:
+            raise EstimateRefused(
+                f"{concept.name} from views {views} fused: {sum(counts)} pixels of its {what} "
+                f"in view (at least {MIN_PART_POINTS} needed); take another view"
+            )
+    fixed = fixed_params(concept) if fixed is None else dict(fixed)
+    ranked = sorted((g for g in guesses if g.estimate is not None), key=lambda g: -g.confidence)
+    starts = [replace(g.estimate, pose=g.pose) for g in ranked if g.estimate is not None]
+    try:
+        est = estimate(concept, looks=clouds, init=fixed, starts=starts, seed=seed)
+    except (PerceptionError, ParameterError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise EstimateRefused(f"{concept.name} from views {views} fused: {first}") from exc
+    got = Perceived(
+        concept.name,
+        join_params(concept, est.params, fixed),
+        np.asarray(est.pose, float),
+        dict(est.joints),
+        float(est.residual),
+        float(est.confidence),
+        "fused",
+        sights[-1].view,
+        sum(len(c.points) for c in clouds),
+        float(est.seconds),
+        est,
+        sum(max(s.handle, 0) for s in sights) if sights[0].handle >= 0 else -1,
+    )
+    got = _seen(got, sights[-1])
+    if not got.confidence >= min_confidence:
+        raise EstimateRefused(
+            f"{concept.name} from views {views} fused: confidence {got.confidence:.2f} is below "
+            f"{min_confidence:.2f} (residual {1000 * got.residual:.1f} mm); take another view",
+            got,
+        )
+    z = got.pose[:3, 2]
+    facing = [
+        float(z @ (c.camera[:3, 3] - got.pose[:3, 3])) > 0.0
+        for c in clouds
+        if isinstance(c.camera, np.ndarray)
+    ]
+    if not any(facing):
+        raise EstimateRefused(
+            f"{concept.name} from views {views} fused: the estimated front faces none of the "
+            "cameras; take another view",
+            got,
+        )
+    return got
+
+
+#: radians: the grid a frameless leaf's joint is chosen on (``frameless_joint``)
+FRAMELESS_STEP = math.radians(0.5)
+
+
+def frameless_joint(
+    concept: Concept, got: Perceived, joint: str, upright: np.ndarray
+) -> Perceived | None:
+    """A frameless leaf's joint from the object's known base orientation, or None when the
+    concept has geometry off the joint's moving link (then the view shows the joint itself).
+
+    Why: a door leaf with no frame looks the same turned about its hinge as with its hinge
+    turned; the fit's joint and the base's rotation trade off freely, and an estimate 110 deg
+    off came back at confidence 1.00. The leaf's place in the world is what the view fixes, so
+    it is kept, and of the (base pose, joint) pairs that put the leaf there the one whose base
+    rotation is nearest ``upright`` (3x3: how the scene or the protocol stands the object) is
+    taken."""
+    from grace_dsl.runtime.shapes import ShapeTree
+
+    child = str(concept.joints[joint]["child"])
+    inst = got.instance(concept)
+    tree = ShapeTree(inst)
+    if any(tree.shapes[n]["link"] != child for n in tree.outermost()):
+        return None
+    leaf = inst.link_pose(child)
+    lo, hi = inst.joint_limits()[joint]
+    base = concept.instantiate(params=dict(got.params))
+
+    def off(q: float) -> tuple[float, float, np.ndarray]:
+        rel = base.with_joints({**got.joints, joint: q}).link_pose(child)
+        pose = leaf @ np.linalg.inv(rel)
+        cos = (float(np.trace(pose[:3, :3].T @ np.asarray(upright, float))) - 1) / 2
+        return math.acos(max(-1.0, min(1.0, cos))), q, pose
+
+    coarse = 10 * FRAMELESS_STEP  # then the grid's step within one coarse step of the best
+    best = min((off(float(q)) for q in np.arange(lo, hi + 1e-9, coarse)), key=lambda b: b[0])
+    near = np.arange(best[1] - coarse, best[1] + coarse + 1e-9, FRAMELESS_STEP)
+    fine = [off(float(q)) for q in near if lo <= q <= hi]
+    best = min([best, *fine], key=lambda b: b[0])
+    return replace(got, pose=best[2], joints={**got.joints, joint: best[1]})
 
 
 def _seen(got: Perceived, sight: Sight) -> Perceived:
@@ -588,27 +718,48 @@ def look_around(
     views: Sequence[View] | View,
     see: Any,
     looks: int = 0,
+    fused: Any = None,
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
     """Try ``see(view)`` until one is not refused: the first accepted estimate (None if every
     look was refused) and an account of every look. Given a list, its views in turn; given one
     view, that first and then up to ``looks`` in all, each next one chosen by ``next_view``
-    from what the refused looks showed."""
+    from what the refused looks showed. Given ``fused(sights, guesses)`` (``fuse`` bound to a
+    concept), from the second look on every look taken is fitted at once too; that estimate
+    is taken when accepted, else the look's own when accepted, else the next view."""
     fixed = list(views) if not isinstance(views, View) else None
     first = views if isinstance(views, View) else fixed[0] if fixed else View(0.0, 45.0)
     limit = len(fixed) if fixed is not None else max(1, looks)
     account: list[dict[str, Any]] = []
     sights: list[Sight] = []
+    guesses: list[Perceived] = []
     for k in range(limit):
         view = fixed[k] if fixed is not None else first if k == 0 else next_view(first, sights)
+        alone: Perceived | None = None
         try:
-            got = see(view)
+            alone = see(view)
         except EstimateRefused as exc:
             entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
             account.append({**entry, "refused": str(exc)})
             sights.append(exc.sight if exc.sight is not None else Sight(view, (0.0, 0.0, 0.0)))
-            continue
-        account.append(got.summary())
-        return got, account
+            if exc.perceived is not None:
+                guesses.append(exc.perceived)
+        if alone is not None:
+            account.append(alone.summary())
+            if fused is None or k == 0 or alone.sight is None:
+                return alone, account
+            sights.append(alone.sight)
+            guesses.append(alone)
+        if fused is not None and k >= 1:
+            try:
+                together = fused(sights, guesses)
+            except EstimateRefused as exc:
+                entry = exc.perceived.summary() if exc.perceived is not None else {}
+                account.append({**entry, "fused": len(sights), "refused": str(exc)})
+            else:
+                account.append({**together.summary(), "fused": len(sights)})
+                return together, account
+        if alone is not None:
+            return alone, account
     return None, account
 
 

@@ -44,9 +44,12 @@ from grace_dsl.agent.estimated import (
     LOOKS,
     MIN_CONFIDENCE,
     Perceived,
+    Sight,
     View,
     fixed_params,
     frame_of,
+    frameless_joint,
+    fuse,
     look,
     look_around,
     with_joints_clipped,
@@ -54,7 +57,7 @@ from grace_dsl.agent.estimated import (
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.instance import Instance
-from grace_dsl.sim.episode import _early, execute, outcome_record, start_episode
+from grace_dsl.sim.episode import Z_UP, _early, execute, outcome_record, start_episode
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.scene import Scene
 from grace_dsl.sim.world import World
@@ -73,9 +76,13 @@ def estimated_episode(
     *,
     min_confidence: float = MIN_CONFIDENCE,
     looks: int = LOOKS,
+    fused: bool = True,
+    frameless: bool = True,
 ) -> EpisodeRecord:
-    """The episode, with the agent's confidence threshold and its number of looks (1: the
-    protocol's view only) as arguments."""
+    """The episode, with the agent's confidence threshold, its number of looks (1: the
+    protocol's view only), whether it fits the looks together (``fused``) and whether a
+    frameless leaf's joint comes from the protocol's upright base (``frameless``,
+    ``estimated.frameless_joint``) as arguments."""
     _check(config)
     started = time.perf_counter()
     start = start_episode(config, seed, started)
@@ -85,12 +92,18 @@ def estimated_episode(
     concept = true.concept
     first = View(draw.camera["azimuth"], draw.camera["elevation"])
     hold = str(concept.joints[task.joint]["child"])  # the link the task moves
-    got, account = perceive_episode(true, first, seed, min_confidence, looks, hold)
+    got, account = perceive_episode(true, first, seed, min_confidence, looks, hold, fused)
     if got is None:
         early = _early(config, seed, task, "no_feasible_grasp", _refused(account), started,
                        draw, true)  # fmt: skip
         return replace(early, estimate={"looks": account, "refused": True})
+    leaf = frameless_joint(concept, got, task.joint, Z_UP[:3, :3]) if frameless else None
+    if leaf is not None:  # a leaf with no frame: its joint from the protocol's upright base
+        fitted = round(float(got.joints.get(task.joint, 0.0)), 4)
+        got = leaf
     errors = estimate_errors(true, got, task.joint)
+    if leaf is not None:
+        errors["frameless_joint"] = {"fitted": fitted, "chosen": round(got.joints[task.joint], 4)}
     believed = _believed(got, concept, ranges)
     if isinstance(believed, str):
         early = _early(config, seed, task, "no_feasible_grasp", believed, started, draw, true)
@@ -121,12 +134,14 @@ def perceive_episode(
     min_confidence: float = MIN_CONFIDENCE,
     looks: int = LOOKS,
     hold: str = "",
+    fused: bool = True,
 ) -> tuple[Perceived | None, list[dict[str, Any]]]:
     """Look at the true instance (rendered by MuJoCo, no floor: the episode's world has none)
     from ``first``, then from views chosen from what the refused looks showed
     (``estimated.next_view``), until one gives an estimate the agent accepts or ``looks``
-    looks were taken (``hold``: the link the task moves, which a look must show). Look k's
-    sensor noise has seed ``seed + 7919 k``."""
+    looks were taken (``hold``: the link the task moves, which a look must show). From the
+    second look on, every look taken is also fitted at once (``estimated.fuse``) unless not
+    ``fused``. Look k's sensor noise has seed ``seed + 7919 k``."""
     scene, model, data = _scene(true)
     centre, radius = frame_of(true)
     taken: list[View] = []
@@ -137,7 +152,11 @@ def perceive_episode(
                     seed + 7919 * (len(taken) - 1), min_confidence=min_confidence,
                     fixed=fixed_params(true.concept, true.params), hold=hold)  # fmt: skip
 
-    return look_around(first, see, looks)
+    def together(sights: list[Sight], guesses: list[Perceived]) -> Perceived:
+        return fuse(true.concept, sights, guesses, seed, min_confidence,
+                    fixed_params(true.concept, true.params))  # fmt: skip
+
+    return look_around(first, see, looks, together if fused else None)
 
 
 def estimate_errors(true: Instance, got: Perceived, joint: str) -> dict[str, Any]:

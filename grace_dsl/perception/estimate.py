@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -65,13 +65,15 @@ def confidence(residual: float, inliers: float, n_points: int, parts: float = 1.
 
 def estimate(
     concept: Concept | str,
-    points: Any,
+    points: Any = None,
     *,
     pose_hint: Any = None,
     init: Estimate | Mapping[str, Any] | None = None,
     camera: Any = None,
     seed: int = 0,
     labels: Any = None,
+    looks: Any = None,
+    starts: Sequence[Estimate] = (),
 ) -> Estimate:
     """Estimate ``concept`` from ``points`` (N, 3), metres, in the camera frame (or give
     ``camera``, the camera's position in the points' frame).
@@ -84,12 +86,30 @@ def estimate(
 
     ``pose_hint``: a 4x4 concept pose near the truth (skips the rotation search). ``init``: a
     learned ``Estimate`` (its parameters, pose and joints start the fit) or parameter values
-    (``split_params`` names like ``front[0]``, or ``instantiate`` names)."""
+    (``split_params`` names like ``front[0]``, or ``instantiate`` names).
+
+    ``looks``: instead of ``points``, several ``perception.looks.Look(points, camera, labels)``
+    in one shared frame, each with its camera's pose, fitted at once (free space and outline
+    per camera); the pose is then the concept's in that frame, and ``starts`` (estimates in
+    that frame) are screened with the hint (``perception.looks.estimate_looks``)."""
     start = time.perf_counter()
     if isinstance(concept, str):
         from grace_dsl.runtime.library import load_library
 
         concept = load_library()[concept]
+    if looks is not None or points is None:
+        from grace_dsl.perception.looks import LookError, estimate_looks
+
+        if points is not None or camera is not None or labels is not None:
+            raise LookError(
+                "give points (with camera, labels) or looks, not both: a Look carries its own "
+                "points, camera and labels"
+            )
+        if looks is None:
+            raise LookError("give the points (N, 3) or looks=[Look(points, camera, labels)]")
+        return estimate_looks(
+            concept, looks, pose_hint=pose_hint, init=init, starts=starts, seed=seed
+        )
     pts = check_cloud(points)
     parts = None if labels is None else check_labels(labels, len(pts))
     if parts is None:

@@ -18,7 +18,7 @@ replaces them), lengths scaled by the ICP's scale.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -65,6 +65,8 @@ LEARNED_PLANES = 2  # of them screened against a learned start's pose
 # least squares: a handle 300 mm from its points still pulls (a 30 mm Cauchy scale would not)
 LABEL_CAUCHY = 0.3
 MIN_PART = 8  # points: a labelled part with fewer does not count in ``part_inliers``
+#: the silhouette's rays: one camera's, several cameras' (fused looks) or none
+Outlines = Outline | Sequence[Outline] | None
 
 
 @dataclass(frozen=True)
@@ -388,7 +390,7 @@ class Fitter:
         camera: np.ndarray,
         iterations: int = 30,
         free: np.ndarray | None = None,
-        outline: Outline | None = None,
+        outline: Outlines = None,
     ) -> FitResult:
         """Refine from ``pose`` (concept in the points' frame) and the starting parameters;
         ``free`` the free-space points (``free_space``: computed here when None); ``outline``
@@ -443,8 +445,9 @@ class Fitter:
             self._result(st, dd, done), free=FREE_WEIGHT * seen, part_inliers=self._parts(dd)
         )
 
-    def _with_outline(self, st: _State, free: np.ndarray, outline: Outline | None) -> np.ndarray:
-        """``free`` and, per outline ray, its point nearest the surface at ``st``."""
+    def _with_outline(self, st: _State, free: np.ndarray, outline: Outlines) -> np.ndarray:
+        """``free`` and, per outline ray, its point nearest the surface at ``st`` (the rays of
+        every camera, when the points come from several)."""
         if outline is None:
             return free
         frame = _inv(st.pose)
@@ -452,7 +455,8 @@ class Fitter:
         def union(world: np.ndarray) -> np.ndarray:
             return self.distances(st, _transform(frame, world), False)[0]
 
-        return np.concatenate([free, nearest_points(outline, union)])
+        rays = [outline] if isinstance(outline, Outline) else list(outline)
+        return np.concatenate([free, *(nearest_points(o, union) for o in rays)])
 
     def _parts(self, dd: np.ndarray) -> float:
         """The worst labelled part's share of points on its own shapes (1 without labels);
@@ -620,34 +624,44 @@ def labelled_fit(
     iterations: int = 20,
     seed: int = 0,
     facing: bool = True,
+    views: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
+    starts: Sequence[tuple[np.ndarray, Mapping[str, Any], Mapping[str, float]]] = (),
 ) -> FitResult:
     """The fit with every point measured against its own part's shapes. Its loss pulls each
     part to its own points from anywhere (the first stage is nearly least squares), so few
     starts are needed and the joints come from the labelled links: the learned or hinted pose,
     one start per facing plane and the discrete variants of the best, or one ICP start when no
     plane faces the camera. Each is screened by ``LABEL_SCREEN`` iterations of the first stage,
-    the best goes on through the narrower scales."""
+    the best goes on through the narrower scales.
+
+    ``views``: when ``points`` joins the clouds of several cameras (fused looks, one frame),
+    each camera's own cloud and position, (points (M, 3), camera (3,)): free space and the
+    outline are read per camera (what one camera saw through, another may not have seen), the
+    data term takes every point, ``LABEL_POINTS`` per camera. ``starts``: more starts to
+    screen, (pose, parameters, joints) each (single looks' fits, in the points' frame)."""
     rng = np.random.default_rng(seed)
     cam = np.zeros(3) if camera is None else np.asarray(camera, float)
+    seen = [(points, cam)] if views is None else [(np.asarray(p), np.asarray(c)) for p, c in views]
     # the outline from every point: a subsample's wider spacing would start the seen-through
     # space centimetres outside it (4 spacings), where a too tall cabinet is not caught
-    free = free_space(points, cam, seed, LABEL_MARGIN)
-    outline = outline_rays(points, cam, seed) if OUTLINE else None
-    keep = subsample(labels, LABEL_POINTS, rng)
+    frees = [free_space(p, c, seed, LABEL_MARGIN) for p, c in seen]
+    outline = _outlines(seen, seed) if OUTLINE else None
+    keep = subsample(labels, LABEL_POINTS * len(seen), rng)
     points, labels = points[keep], labels[keep]
     base = concept.instantiate().params
     if init:
         base.update(init)
     base = labelled_variant(concept, base, labels)
     hint = None if pose_hint is None else np.asarray(pose_hint, float)
-    if len(free) > LABEL_FREE:
-        free = free[rng.choice(len(free), LABEL_FREE, replace=False)]
+    free = np.concatenate([_thinned(f, LABEL_FREE, rng) for f in frees])
     inst = feasible_instance(concept, base)
     states = [dict(init_joints)] if init_joints else joint_starts(inst)[:1]
     cands: list[tuple[float, np.ndarray, dict[str, Any], dict[str, float]]] = []
     if hint is not None:
         cands.append((0.0, hint, base, states[0]))
-    if facing and camera is None:  # a hint is screened against the facing planes too
+    for pose, params, joints in starts:
+        cands.append((0.0, np.asarray(pose, float), base | dict(params), dict(joints)))
+    if facing and camera is None and views is None:  # a hint is screened against the planes too
         planes = plane_starts(concept, points, inst.params, states, camera, seed, draws=0)
         cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 2]
     if not cands:
@@ -697,6 +711,19 @@ def labelled_fit(
     )
 
 
+def _thinned(pts: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """At most ``n`` of ``pts``, drawn without replacement."""
+    return pts if len(pts) <= n else pts[rng.choice(len(pts), n, replace=False)]
+
+
+def _outlines(seen: Sequence[tuple[np.ndarray, np.ndarray]], seed: int) -> Outlines:
+    """The silhouette's rays of each camera (one camera: its ``Outline`` or None)."""
+    rays = [outline_rays(p, c, seed) for p, c in seen]
+    if len(rays) == 1:
+        return rays[0]
+    return [r for r in rays if r is not None] or None
+
+
 def _resolves(concept: Concept, params: Mapping[str, Any], names: list[str]) -> bool:
     """Whether every label names shapes of the instance at ``params``."""
     inst = feasible_instance(concept, params)
@@ -738,7 +765,7 @@ def _stage(
     points: np.ndarray,
     labels: np.ndarray,
     free: np.ndarray,
-    outline: Outline | None,
+    outline: Outlines,
     pose: np.ndarray,
     params: Mapping[str, Any],
     joints: Mapping[str, float],

@@ -121,7 +121,7 @@ def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.Monke
     from grace_dsl.sim.episode import run_episode
     from grace_dsl.sim.records import EpisodeConfig
 
-    def truth(true, first, seed, min_confidence, looks, hold):  # type: ignore[no-untyped-def]
+    def truth(true, first, seed, min_confidence, looks, hold, fused):  # type: ignore[no-untyped-def]
         got = Perceived(true.concept.name, dict(true.params), true.pose, dict(true.joints),
                         0.0, 1.0, "truth", first, 0, 0.0)  # fmt: skip
         return got, [got.summary()]
