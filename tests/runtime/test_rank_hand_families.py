@@ -88,7 +88,6 @@ def test_the_tilted_hook_passes_eacc_verify(lib: eac.Library) -> None:
     assert report.ok, failed
 
 
-@pytest.mark.slow
 def test_the_pusher_hooks_a_bar_close_to_the_front_by_tilting(lib: eac.Library) -> None:
     """A 32 mm stand-off: at tilt 0 the pusher's 60 mm flange meets the front (it needs about
     46 mm); rank's search finds a tilt where it clears, and the independent sweep agrees."""
