@@ -22,6 +22,12 @@ simulation), how many succeeded, per hand (with the Panda's own run from
     python bench/bench_sim_hands.py --small           # 3 categories x 3 episodes
     python bench/bench_sim_hands.py --smoke           # 1 category x 1 episode (the tests)
     python bench/bench_sim_hands.py --setups topdown --categories Drawer --episodes 5
+    python bench/bench_sim_hands.py --setups pusher --tasks open --rank-only   # rank, no physics
+
+``--rank-only`` draws the same episodes and runs ``inst.rank`` on each, without MuJoCo: which
+option the hand would execute (grasp and free parameters) or why none is feasible. It is cheap
+enough to compare concepts before and after a change on many draws (the ``panda`` set-up: the
+Panda's option must not change where the change is not meant for it).
 """
 
 from __future__ import annotations
@@ -35,9 +41,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from grace_dsl.runtime.gripper import Gripper
+from grace_dsl.sim.episode import start_episode
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 from grace_dsl.sim.report import record_from_json
-from grace_dsl.sim.runner import plan_episodes, run_episodes
+from grace_dsl.sim.runner import TASKS, plan_episodes, run_episodes
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sim import CATEGORIES  # noqa: E402  (the flying Panda's twelve categories)
@@ -50,15 +58,19 @@ SETUPS = {
     "topdown": EpisodeConfig("", hand="topdown"),
     "pusher": EpisodeConfig("", hand="pusher"),
     "scaled": EpisodeConfig("", hand="panda", scale=(0.3, 2.0), ranges="valid"),
+    "panda": EpisodeConfig("", hand="panda"),  # for --rank-only comparisons (bench_sim runs it)
 }
+DEFAULT_SETUPS = ["topdown", "pusher", "scaled"]
 NOT_TRIED = ("no_feasible_grasp", "invalid_draw")  # rank offered nothing, or no valid object
 TARGET = 0.80  # issue 13's strict success target for these set-ups
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--setups", nargs="+", choices=sorted(SETUPS), default=list(SETUPS))
+    ap.add_argument("--setups", nargs="+", choices=sorted(SETUPS), default=DEFAULT_SETUPS)
     ap.add_argument("--categories", nargs="+", default=None)
+    ap.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS))
+    ap.add_argument("--rank-only", action="store_true", help="rank each draw, no physics")
     ap.add_argument("--episodes", type=int, default=20, help="episodes per category and task")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="episode processes")
@@ -81,14 +93,59 @@ def main(argv: list[str] | None = None) -> int:
             categories, episodes = tuple(args.categories or SMALL), 3
         if args.smoke:
             categories, episodes = (categories[0],), 1
+        if args.rank_only:
+            return rank_only(args, command, categories, episodes)
         records = []
         for name in args.setups:  # a category at a time, the JSON rewritten after each
             for category in categories:
-                jobs = plan_episodes((category,), episodes, args.seed, SETUPS[name])
+                jobs = plan_episodes((category,), episodes, args.seed, SETUPS[name], args.tasks)
                 records += run_episodes(jobs, workers=args.workers)
                 write(args, command, episodes, records, quiet=True)
     write(args, command, episodes, records)
     return 0
+
+
+def rank_only(
+    args: argparse.Namespace, command: str, categories: tuple[str, ...], episodes: int
+) -> int:
+    """Each planned episode's draw ranked for its hand (no physics): the option it would
+    execute, or rank's reasons; printed per set-up, category and task, and to ``--out``."""
+    rows: list[dict[str, Any]] = []
+    for name in args.setups:
+        hand = Gripper.load(SETUPS[name].hand)
+        for category in categories:
+            jobs = plan_episodes((category,), episodes, args.seed, SETUPS[name], args.tasks)
+            rows += [ranked(name, hand, config, seed) for config, seed in jobs]
+    counts: dict[tuple[str, str, str], Counter[str]] = defaultdict(Counter)
+    for r in rows:
+        counts[(r["setup"], r["concept"], r["task"])][r["option"] or "none"] += 1
+    for (setup, concept, task), c in counts.items():
+        n = sum(c.values())
+        print(f"{setup:8} {concept:14} {task:6} {n - c['none']:3d} of {n:3d}  {dict(c)}")
+    out = args.out or RESULTS.with_name("sim_hands_rank.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"command": command, "episodes": episodes, "seed": args.seed, "ranked": rows}
+    out.write_text(json.dumps(payload, indent=1) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+def ranked(setup: str, hand: Gripper, config: EpisodeConfig, seed: int) -> dict[str, Any]:
+    """One episode's draw ranked: the first feasible option (grasp, contact, free parameters)
+    or every option's first reason."""
+    row: dict[str, Any] = {"setup": setup, "concept": config.concept, "task": config.task}
+    row.update(seed=seed, option="", contact="", free={}, why="")
+    start = start_episode(config, seed, time.perf_counter())
+    if isinstance(start, EpisodeRecord):
+        return {**row, "why": start.reason}
+    options = start.inst.rank(start.task.action, gripper=hand)
+    usable = [o for o in options if o.feasible]
+    if not usable:
+        why = "; ".join(f"{o.grasp}: {o.reasons[0]}" for o in options if o.reasons)
+        return {**row, "why": why}
+    best = usable[0]
+    free = {k: round(v, 4) for k, v in best.free.items()}
+    return {**row, "option": best.grasp, "contact": best.contact, "free": free}
 
 
 def write(
