@@ -142,6 +142,11 @@ def estimate(
         labels=parts,
     )
     floats, discrete = split_params(concept, result.params)
+    spread = (
+        {}
+        if result.spread is None
+        else {k: float(v) for k, v in zip(floats, result.spread, strict=True)}
+    )
     return Estimate(
         concept=concept.name,
         params=floats,
@@ -152,6 +157,7 @@ def estimate(
         seconds=time.perf_counter() - start,
         source=source,
         discrete=discrete,
+        spread=spread,
     )
 
 

@@ -159,12 +159,28 @@ def facing_model(
 ) -> np.ndarray:
     """Surface samples (concept frame) of the instance that face the direction ``view`` (unit,
     concept frame, from the object toward the camera)."""
-    inst = concept.instantiate(params=dict(params))
-    if joints:
-        inst = inst.with_joints(dict(joints))
-    pts, normals = inst.sample_surface_with_normals(MODEL_POINTS, seed=seed)
+    pts, normals = _surface(concept, params, joints, seed)
     keep = normals @ view > 0.1
     return pts[keep] if keep.sum() >= 32 else pts
+
+
+def _surface(
+    concept: Concept, params: Mapping[str, Any], joints: Mapping[str, float], seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Surface samples and normals of the instance, the last few kept: every facing plane
+    starts from the same unsized instance, and sampling it costs tens of milliseconds."""
+    key = (concept, repr(sorted(params.items())), repr(sorted(joints.items())), seed)
+    if key not in _SURFACES:
+        inst = concept.instantiate(params=dict(params))
+        if joints:
+            inst = inst.with_joints(dict(joints))
+        _SURFACES[key] = inst.sample_surface_with_normals(MODEL_POINTS, seed=seed)
+        while len(_SURFACES) > 8:
+            del _SURFACES[next(iter(_SURFACES))]
+    return _SURFACES[key]
+
+
+_SURFACES: dict[tuple[Concept, str, str, int], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def icp_translation(

@@ -79,6 +79,10 @@ class Estimate:
     source: str = "fit"  # "learned", "fit" or "learned+fit"
     # the non-float parameters the fit chose (a hinge's side), when it chose them
     discrete: dict[str, object] = field(default_factory=dict)
+    # one standard deviation (SI) of each estimated parameter, where the estimator can tell: a
+    # parameter the view does not show (a drawer's travel, the depth behind a closed front) has
+    # about its whole range here, and is a guess however close ``params`` happens to be
+    spread: dict[str, float] = field(default_factory=dict)
 
 
 class Segmenter(Protocol):

@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from grace_dsl.perception.estimate import confidence, estimate
-from grace_dsl.perception.fit import CAUCHY, LABEL_MARGIN, Fitter, free_space, rotation_exp
+from grace_dsl.perception.fit import (
+    CAUCHY,
+    FREE_WEIGHT,
+    LABEL_MARGIN,
+    Fitter,
+    _State,
+    free_space,
+    rotation_exp,
+)
 from grace_dsl.perception.labels import (
     LabelError,
     check_labels,
@@ -194,3 +202,47 @@ def test_the_outline_rays_lie_just_outside_the_silhouette() -> None:
     assert len(set(zip(np.abs(at[:, :2]).argmax(axis=1), sides))) == 4
     assert outline.near < 2.0 < outline.far
     assert outline_rays(square[:10], np.zeros(3)) is None
+
+
+@pytest.mark.slow
+def test_the_jacobian_at_the_weighted_rows_only_gives_the_full_systems_residuals(lib) -> None:
+    """``Fitter.residuals`` evaluates the compiled gradient at the data points and at the
+    free-space points the surface reaches only; the residuals and Jacobian are those of every
+    row evaluated (the other free-space rows weigh nothing)."""
+    concept = lib["CabinetDrawer"]
+    view, names = generate_labelled_views(concept, 1, HELDOUT, noise=0.002, every_pixel=True)[0]
+    pts, labels = view.points.astype(float), np.array(names)
+    keep = subsample(labels, 256, np.random.default_rng(0))
+    truth = join_params(concept, view.params, view.fixed)
+    taller = truth | {"front": tuple(np.asarray(truth["front"]) + [0.03, 0.05, 0.0])}
+    fitter = Fitter(concept, taller, view.joints, CAUCHY, labels[keep], strict=False)
+    frame = np.linalg.inv(view.pose)
+    y = pts[keep] @ frame[:3, :3].T + frame[:3, 3]
+    free = free_space(pts, np.zeros(3), 0, LABEL_MARGIN) @ frame[:3, :3].T + frame[:3, 3]
+    st = _State(fitter.theta0, fitter.q0, np.eye(4))
+    r, jac, _ = fitter.residuals(st, y, free, True)
+    r0, _, _ = fitter.residuals(st, y, free, False)
+    np.testing.assert_allclose(r, r0, atol=1e-12)
+    d, g = fitter.distances(st, np.concatenate([y, free]), True, len(y))
+    assert g is not None and jac is not None
+    reached = np.concatenate([np.ones(len(y), bool), d[len(y) :] < 0])
+    assert 0 < reached[len(y) :].sum() < len(free)  # some free rows weigh, not all
+    n = len(y)
+    wd = 1.0 / np.sqrt(1.0 + (d[:n] / CAUCHY) ** 2)
+    wf = FREE_WEIGHT * (d[n:] < 0)
+    full = np.concatenate([wd[:, None] * g[:n], wf[:, None] * g[n:]]) / math.sqrt(n)
+    np.testing.assert_allclose(jac[: len(full)], full, atol=1e-12)
+    assert not jac[len(y) : len(full)][~reached[len(y) :]].any()
+
+
+@pytest.mark.slow
+def test_the_spread_tells_what_the_view_shows_from_what_it_cannot(lib) -> None:
+    """A drawer's ``travel`` moves no surface: its reported spread is about its range; the
+    front's width and the handle's length, which the points show, are sure to millimetres."""
+    concept = lib["CabinetDrawer"]
+    view, labels = generate_labelled_views(concept, 1, HELDOUT, noise=0.002, every_pixel=True)[0]
+    est = estimate(concept, view.points.astype(float), labels=labels)
+    assert set(est.spread) == set(est.params)
+    travel = next(s for s in concept.params if s.name == "travel")
+    assert est.spread["travel"] > 0.3 * (travel.hi - travel.lo), est.spread
+    assert est.spread["front[0]"] < 0.003 and est.spread["handle.length"] < 0.003, est.spread
