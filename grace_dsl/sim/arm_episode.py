@@ -31,6 +31,7 @@ import numpy as np
 
 from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
+from grace_dsl.robot.plan import PLAN_CHECKS
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.manipulation import CLEARANCE
@@ -68,9 +69,9 @@ MIN_STAGE = 0.08
 # Plans executed one after another at most: each follows the part as far as the arm reaches,
 # lets go and backs off; the next is planned from where the part and the arm then are
 STAGES = 3
-# s of OMPL for the approach of a partial plan or a later stage (a first plan has the planner's
-# 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
-LATER = 6.0
+# Collision checks OMPL may spend on the approach of a partial plan or a later stage (a first
+# plan has the planner's default): its start is near the object, where paths are harder to find
+LATER = 3 * PLAN_CHECKS
 PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
 # Fractions of the way a stage is planned to when no grasp carries the part all the way
 SHORTER = (0.5,)
@@ -209,7 +210,7 @@ def plan_episode(
             base=base,
             q_start=q_start,
             seed=seed,
-            time_limit=LATER,
+            checks=LATER,
             also=also,
         )
     except ActionPlanningError as exc:
@@ -316,7 +317,7 @@ def next_stage(
     to = _plan_to(inst, task)
     try:
         return plan_action(
-            robot, inst, task.action, to, base=base, q_start=here, seed=seed, time_limit=LATER
+            robot, inst, task.action, to, base=base, q_start=here, seed=seed, checks=LATER
         )
     except (ActionPlanningError, NoGraspError) as kept:
         if move_base:
@@ -370,7 +371,7 @@ def _plan_partial(
                 base=base,
                 q_start=q_start,
                 seed=seed,
-                time_limit=LATER,
+                checks=LATER,
                 also=also,
             )
         except ActionPlanningError as exc:
