@@ -297,9 +297,7 @@ def _phases(
     _check(letting_go, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
-        approach = plan_path(
-            full, q0, insert[0], checks=budget[0], time_limit=budget[1], seed=seed
-        )
+        approach = plan_path(full, q0, insert[0], checks=budget[0], time_limit=budget[1], seed=seed)
     except PlanningError as exc:
         reason = "time limit" if isinstance(exc, PlanningTimeout) else "no path"
         raise ActionPlanningError(f"the approach: {exc}", phase="approach", reason=reason) from None
