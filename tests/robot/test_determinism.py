@@ -63,14 +63,15 @@ def test_a_plan_is_the_same_when_every_check_is_slow(panda: Robot, blocked) -> N
     scene, start, goal = blocked
     fast = plan_path(scene, start, goal, seed=3)
     _other_plan(panda, scene)  # the process's history does not change the next plan either
-    slow_scene = Slowed(scene, 4e-4)
+    slow_scene = Slowed(scene, 2e-4)
     began = time.perf_counter()
     slow = plan_path(slow_scene, start, goal, seed=3)  # type: ignore[arg-type]
     assert slow_scene.checks > 500  # a real search: OMPL and the shortcutting ran slowed
-    assert time.perf_counter() - began > slow_scene.checks * 4e-4
+    assert time.perf_counter() - began > slow_scene.checks * 2e-4
     assert fast.shape == slow.shape and np.array_equal(fast, slow)  # bit-identical
 
 
+@pytest.mark.slow
 def test_a_plan_depends_on_its_seed(panda: Robot, blocked) -> None:  # type: ignore[no-untyped-def]
     scene, start, goal = blocked
     a = plan_path(scene, start, goal, seed=3)
@@ -98,9 +99,9 @@ def test_the_wall_clock_cap_is_a_typed_load_dependent_failure(panda: Robot, bloc
 
 
 def test_grasp_ik_is_the_same_when_every_check_is_slow(panda: Robot, lib) -> None:  # type: ignore[no-untyped-def]
-    """A cabinet standing on the robot's base: every grasp posture of the drawer in front is
-    rejected by a collision check, so the search runs its whole budget of restarts however long
-    the checks take (the former 0.5 s ended it after a few slowed ones)."""
+    """A cabinet standing on the robot's base: every grasp posture of the drawer in front that
+    converges is rejected by a collision check, so the search runs its whole budget of restarts
+    however long the checks take (the former 0.5 s cap ended it after two slowed ones)."""
     inst = lib["CabinetDrawer"].instantiate(pose=facing(0.65, 0.0, 0.45))
     on_base = lib["CabinetDrawer"].instantiate(pose=facing(0.0, 0.0, 0.0))
     scene = collision_scene(
@@ -109,9 +110,9 @@ def test_grasp_ik_is_the_same_when_every_check_is_slow(panda: Robot, lib) -> Non
     assert scene.collides(panda.home)
     opts = IKOptions(max_restarts=8)
     fast = solve_grasp_ik(panda, inst, "handle.pull", scene=scene, seed=5, options=opts)
-    slowed = Slowed(scene, 0.1)
+    slowed = Slowed(scene, 0.3)
     slow = solve_grasp_ik(panda, inst, "handle.pull", scene=slowed, seed=5, options=opts)  # type: ignore[arg-type]
     assert fast.reason == slow.reason == "collision"
-    assert slowed.checks >= 6 and slow.seconds > 0.6  # slower than the former cap
+    assert slowed.checks >= 2 and slow.seconds > 0.6  # longer than the former 0.5 s cap
     assert fast.restarts == slow.restarts == 8 and fast.iterations == slow.iterations
     assert np.array_equal(fast.q, slow.q) and fast.free == slow.free
