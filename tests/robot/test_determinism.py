@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from grace_dsl.robot.act import plan_action
 from grace_dsl.robot.collision import CollisionScene, collision_scene
 from grace_dsl.robot.grasp_ik import solve_grasp_ik
 from grace_dsl.robot.ik import IKOptions
@@ -116,3 +117,31 @@ def test_grasp_ik_is_the_same_when_every_check_is_slow(panda: Robot, lib) -> Non
     assert slowed.checks >= 2 and slow.seconds > 0.6  # longer than the former 0.5 s cap
     assert fast.restarts == slow.restarts == 8 and fast.iterations == slow.iterations
     assert np.array_equal(fast.q, slow.q) and fast.free == slow.free
+
+
+@pytest.mark.slow
+def test_a_whole_action_plan_is_the_same_when_every_check_is_slow(
+    panda: Robot, lib, monkeypatch: pytest.MonkeyPatch
+) -> None:  # type: ignore[no-untyped-def]
+    """``plan_action`` (grasp choice by IK with collision checks, the tracked phases, the
+    approach, the timing) twice, the second time with every collision check of every scene
+    slowed: the trajectories are bit-identical. (The approach is a free straight segment here;
+    the OMPL search under slowed checks is the first test's.)"""
+    door = lib["SunkenDoor"].instantiate(pose=facing(0.7, 0.0, 0.45))
+    fast = plan_action(panda, door, "open", to=0.6, seed=2)
+    real = CollisionScene.collides
+    calls = [0]
+
+    def slowed(self: CollisionScene, q: Any) -> bool:
+        calls[0] += 1
+        end = time.perf_counter() + 1e-4
+        while time.perf_counter() < end:
+            pass
+        return real(self, q)
+
+    monkeypatch.setattr(CollisionScene, "collides", slowed)
+    slow = plan_action(panda, door, "open", to=0.6, seed=2)
+    assert calls[0] > 1000
+    assert fast.phases == slow.phases
+    assert np.array_equal(fast.q, slow.q) and np.array_equal(fast.t, slow.t)
+    assert np.array_equal(fast.joint_values, slow.joint_values)
