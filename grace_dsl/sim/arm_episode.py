@@ -350,7 +350,9 @@ def _plan_partial(
     """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
     earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
     ``REPLAN_AT`` of the last failure's reach. Raises the last failure when a plan would move
-    the part less than ``MIN_STAGE`` of the range."""
+    the part less than ``MIN_STAGE`` of the range, unless it ends where the task is done (a
+    laptop lid 0.18 rad open whose last 0.004 rad the fingers cannot follow: a stage to 0.013
+    rad closes it)."""
     from grace_dsl.robot.act import ActionPlanningError, plan_action
 
     lo, hi = inst.joint_limits()[task.joint]
@@ -360,7 +362,9 @@ def _plan_partial(
         if not isinstance(failure, ActionPlanningError) or value is None:
             raise failure
         partial = start + REPLAN_AT * (float(value) - start)
-        if (partial - start) * task.sign < MIN_STAGE * (hi - lo):
+        if (partial - start) * task.sign < MIN_STAGE * (hi - lo) and not _finishes(
+            task, partial, lo, hi
+        ):
             raise failure
         try:
             return plan_action(
@@ -377,6 +381,14 @@ def _plan_partial(
         except ActionPlanningError as exc:
             failure = exc
     raise failure
+
+
+def _finishes(task: TaskAction, value: float, lo: float, hi: float) -> bool:
+    """Whether the part at ``value`` is where the stages stop: past ``OPEN_ENOUGH`` of the
+    range for an open, within ``CLOSE_ENOUGH`` of the closed end for a close."""
+    if task.sign > 0:
+        return value >= lo + OPEN_ENOUGH * (hi - lo)
+    return value <= lo + CLOSE_ENOUGH * (hi - lo)
 
 
 def _interleave(scored: list[np.ndarray], fixed: list[np.ndarray], count: int) -> list[np.ndarray]:
