@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.robot.collision import CollisionScene
-from grace_dsl.runtime.errors import GraceError
+from grace_dsl.runtime.errors import GraceError, ParameterError
 
 FloatArray = np.ndarray
 CHECK_RESOLUTION = 0.01  # radians between collision checks along a segment
@@ -80,7 +80,7 @@ def plan_path(
     if segment_free(scene, q0, q1, resolution):
         return np.stack([q0, q1])
     if checks < 1:
-        raise PlanningError(f"the planner's budget must be at least 1 check, not {checks}")
+        raise ParameterError(f"the planner's budget must be at least 1 check, not {checks}")
     waypoints = _ompl_path(scene, q0, q1, _Budget(checks, time_limit), seed, resolution)
     for a, b in zip(waypoints[:-1], waypoints[1:]):
         if not segment_free(scene, a, b, resolution):

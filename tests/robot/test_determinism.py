@@ -19,6 +19,7 @@ from grace_dsl.robot.grasp_ik import solve_grasp_ik
 from grace_dsl.robot.ik import IKOptions
 from grace_dsl.robot.model import Robot
 from grace_dsl.robot.plan import PlanningError, PlanningTimeout, plan_path
+from grace_dsl.runtime.errors import ParameterError
 from tests.robot.test_grasp_ik import facing
 
 
@@ -89,7 +90,7 @@ def test_the_planners_budget_is_a_count_of_checks(panda: Robot, blocked) -> None
         plan_path(counted, start, goal, checks=40, seed=3)  # type: ignore[arg-type]
     # the straight-segment test (start to goal, before OMPL) plus at most one planner iteration
     assert counted.checks < 400
-    with pytest.raises(PlanningError, match="at least 1 check"):
+    with pytest.raises(ParameterError, match="at least 1 check"):
         plan_path(scene, start, goal, checks=0)
 
 
