@@ -47,7 +47,7 @@ def run(draws: int, seed: int, only: list[str] | None, quiet: bool) -> dict:
     lib = eac.load_library()
     robot = eac.Robot.panda()
     names = only or [n for n in verifiable(lib) if lib[n].grasps]
-    opts = IKOptions(time_limit=0.25)
+    opts = IKOptions()
     rows = {}
     with Progress(transient=True, disable=quiet) as bar:
         task = bar.add_task("grasp IK", total=len(names) * draws)

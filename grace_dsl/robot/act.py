@@ -39,7 +39,9 @@ from grace_dsl.robot.model import Robot, rigid_pose
 from grace_dsl.robot.plan import (
     CHECK_RESOLUTION,
     DEFAULT_ACCELERATION,
+    PLAN_CHECKS,
     PlanningError,
+    PlanningTimeout,
     plan_path,
 )
 from grace_dsl.robot.timing import Trajectory, time_optimal
@@ -137,7 +139,8 @@ def plan_action(
     q_start: Any = None,
     steps: int = 24,
     seed: int = 0,
-    time_limit: float = 2.0,
+    checks: int = PLAN_CHECKS,
+    time_limit: float | None = None,
     acceleration: float | FloatArray = DEFAULT_ACCELERATION,
     allowance: float = FINGER_ALLOWANCE,
     candidates: int = CANDIDATES,
@@ -152,7 +155,9 @@ def plan_action(
     :class:`ActionPlanningError` (or ``NoGraspError``) with the reason of the candidate that got
     furthest when this base placement cannot do it. ``obstacles``: the other objects of a room
     (posed instances that stand still), checked in every phase; ``grasps``: only these options
-    of ``inst.rank`` (default all); ``also``: grasps tried besides the action's."""
+    of ``inst.rank`` (default all); ``also``: grasps tried besides the action's. ``checks``: the
+    approach planner's budget of collision checks (a count: the plan does not depend on the
+    machine's load); ``time_limit``: its optional wall-clock safety cap (off by default)."""
     base_m = np.eye(4) if base is None else rigid_pose(base, "the robot base pose")
     q0 = robot.home if q_start is None else robot.check_q(q_start)
     clock = [("start", time.perf_counter())]
@@ -200,7 +205,7 @@ def plan_action(
                 values,
                 joint,
                 seed,
-                time_limit,
+                (checks, time_limit),
                 times,
             )
         except ActionPlanningError as exc:
@@ -253,7 +258,7 @@ def _phases(
     values: FloatArray,
     joint: str | None,
     seed: int,
-    time_limit: float,
+    budget: tuple[int, float | None],
     clock: list[tuple[str, float]],
 ) -> tuple[list[tuple[FloatArray, FloatArray, _Object]], float]:
     """The four phases' joint waypoints, object joint values and collision scenes, checked
@@ -292,11 +297,10 @@ def _phases(
     _check(letting_go, retreat, np.full(len(retreat), held_values[-1]), "backing out")
     clock.append(("tracking", time.perf_counter()))
     try:
-        approach = plan_path(full, q0, insert[0], time_limit=time_limit, seed=seed)
+        approach = plan_path(full, q0, insert[0], checks=budget[0], time_limit=budget[1], seed=seed)
     except PlanningError as exc:
-        raise ActionPlanningError(
-            f"the approach: {exc}", phase="approach", reason="no path"
-        ) from None
+        reason = "time limit" if isinstance(exc, PlanningTimeout) else "no path"
+        raise ActionPlanningError(f"the approach: {exc}", phase="approach", reason=reason) from None
     clock.append(("approach", time.perf_counter()))
     return [
         (approach, np.full(len(approach), start_value), _Object(full, inst, None)),

@@ -14,6 +14,7 @@ interpenetrate by up to ``allowance``: a hand holding a handle touches it, nothi
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,18 +220,34 @@ def _object_geometry(inst: Any, to_base: FloatArray) -> list[tuple[str, pin.Geom
     """One BVH mesh per link of ``inst`` that has shapes, in the link's frame, placed at the
     link's pose in the robot's base frame."""
     out = []
+    for link, bvh in _link_bvhs(inst):
+        placement = pin.SE3(to_base @ inst.link_pose(link))
+        out.append((link, pin.GeometryObject(f"object/{link}", 0, placement, bvh)))
+    return out
+
+
+# Each instance's link meshes as BVHs in their links' frames, built once per instance: a plan
+# builds a scene per grasp posture and hand (open, closed, letting go), each of the same
+# object, and the meshes (boolean unions of the shapes) cost most of a scene. Read-only once
+# built, so scenes share them.
+_BVHS: weakref.WeakKeyDictionary[Any, list[tuple[str, Any]]] = weakref.WeakKeyDictionary()
+
+
+def _link_bvhs(inst: Any) -> list[tuple[str, Any]]:
+    if inst in _BVHS:
+        return _BVHS[inst]
+    out = []
     for link in inst.links:  # the copies its counts leave out have no geometry
         mesh = inst.link_mesh(link)
         if len(mesh.faces) == 0:
             continue
-        pose = inst.link_pose(link)
-        to_link = np.linalg.inv(pose)
+        to_link = np.linalg.inv(inst.link_pose(link))
         bvh = coal.BVHModelOBBRSS()
         bvh.beginModel(len(mesh.faces), len(mesh.vertices))
         vertices = np.asarray(mesh.vertices, dtype=float) @ to_link[:3, :3].T + to_link[:3, 3]
         bvh.addVertices(np.ascontiguousarray(vertices))
         bvh.addTriangles(np.ascontiguousarray(mesh.faces, dtype=np.int64))
         bvh.endModel()
-        placement = pin.SE3(to_base @ pose)
-        out.append((link, pin.GeometryObject(f"object/{link}", 0, placement, bvh)))
+        out.append((link, bvh))
+    _BVHS[inst] = out
     return out

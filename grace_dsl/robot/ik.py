@@ -14,6 +14,11 @@ OSQP when that does not settle (:mod:`grace_dsl.robot.qp`). A step longer than t
 ``‖e‖²`` is refused and ``β`` raised tenfold (an accepted one divides it by 3, down to 1). An
 attempt that stalls restarts from the next configuration of the robot's seed bank whose gripper
 lies nearest the target (:mod:`grace_dsl.robot.seeds`), then from seeded random ones.
+
+The effort is counted, not timed: ``max_restarts`` attempts of at most ``max_iterations`` steps
+each, so a result is a function of the target, the start and the seed alone, whatever the
+machine's load. ``time_limit`` (off by default) is only a safety cap: when it ends a search the
+reason says ``time_limit``, a failure that depends on the load and is reported as such.
 """
 
 from __future__ import annotations
@@ -66,8 +71,8 @@ class IKOptions:
     tol_rot: float = ROTATION_TOLERANCE
     max_iterations: int = 30  # per attempt
     stall_window: int = 5  # steps without 5% progress that end an attempt
-    max_restarts: int = 40
-    time_limit: float = 0.5  # seconds, all attempts together
+    max_restarts: int = 40  # the search's budget: attempts after the first, a count
+    time_limit: float | None = None  # optional wall-clock safety cap (s); off: load-independent
     trust_region: float = 0.4  # radians per joint per step
     damping: float = 1e-6  # λ₀
     damping_error: float = 1e-2  # μ
@@ -129,8 +134,9 @@ def search(
     usable: Callable[[FloatArray], bool] | None = None,
 ) -> Search:
     """:func:`descend` from ``x``, then from ``restart()`` after every attempt that stalls, until
-    an attempt ends within tolerance at a ``usable`` point, the time limit or the restart
-    budget. A point within tolerance that is not usable counts as just outside it."""
+    an attempt ends within tolerance at a ``usable`` point or the restart budget is spent (or
+    the optional wall-clock cap ``opts.time_limit`` is hit, reason ``time_limit``). A point
+    within tolerance that is not usable counts as just outside it."""
     start = time.perf_counter()
     best: tuple[float, FloatArray] = (math.inf, x)
     iterations, rejected = 0, False
@@ -143,9 +149,10 @@ def search(
             best = (score, x.copy())
         if score <= 1.0:
             return Search(best[1], iterations, attempt, "converged")
-        if time.perf_counter() - start > opts.time_limit:
+        if opts.time_limit is not None and time.perf_counter() - start > opts.time_limit:
             return Search(best[1], iterations, attempt, "collision" if rejected else "time_limit")
-        x = restart()
+        if attempt < opts.max_restarts:
+            x = restart()
     reason = "collision" if rejected else "unreachable"
     return Search(best[1], iterations, opts.max_restarts, reason)
 

@@ -14,6 +14,7 @@ import math
 import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -73,10 +74,7 @@ class Robot:
         if not urdf.is_file():
             raise RobotModelError(f"no URDF at {urdf}")
         dirs = [str(d) for d in package_dirs] or [str(urdf.parent.parent.parent)]
-        try:
-            full, collision, _ = pin.buildModelsFromUrdf(str(urdf), package_dirs=dirs)
-        except (RuntimeError, ValueError) as exc:
-            raise RobotModelError(f"cannot load {urdf}: {exc}") from None
+        full, collision = _parsed(str(urdf.resolve()), tuple(dirs))
         model, collision = _reduced(full, collision, locked or {})
         frame_name, offset = (tcp, np.eye(4)) if isinstance(tcp, str) else tcp
         tcp_frame = _add_tcp(model, frame_name, rigid_pose(offset, "the TCP offset"))
@@ -225,6 +223,18 @@ def robot_data_file(relative: str) -> Path:
     raise RobotModelError(f"example-robot-data has no {suffix}")
 
 
+@lru_cache(maxsize=4)
+def _parsed(urdf: str, dirs: tuple[str, ...]) -> tuple[pin.Model, pin.GeometryModel]:
+    """The URDF's model and collision geometry, parsed once per process (the meshes take most
+    of a second to load; a hand closed to another width only locks its fingers elsewhere).
+    Callers get copies or reduced models (``_reduced``), never these."""
+    try:
+        full, collision, _ = pin.buildModelsFromUrdf(urdf, package_dirs=list(dirs))
+    except (RuntimeError, ValueError) as exc:
+        raise RobotModelError(f"cannot load {urdf}: {exc}") from None
+    return full, collision
+
+
 def _reduced(
     full: pin.Model, collision: pin.GeometryModel, locked: Mapping[str, float]
 ) -> tuple[pin.Model, pin.GeometryModel]:
@@ -236,8 +246,8 @@ def _reduced(
         jid = full.getJointId(joint)
         q[full.joints[jid].idx_q] = value
         ids.append(jid)
-    if not ids:
-        return full, collision
+    if not ids:  # copies: the parsed models are shared by every robot loaded from the file
+        return pin.Model(full), collision.copy()
     model, (geom,) = pin.buildReducedModel(full, [collision], ids, q)
     return model, geom
 

@@ -239,7 +239,7 @@ PATH_BEARINGS = tuple(math.radians(a) for a in (-60, -35, -12, 12, 35, 60))
 SIDE_BEARINGS = tuple(math.radians(a) for a in (-120, -90, 90, 120))
 SIDE_RADII = (0.5, 0.65)
 PATH_SAMPLES = 9  # poses along the hand path checked by IK per base
-PATH_IK = IKOptions(max_restarts=0, time_limit=0.05)
+PATH_IK = IKOptions(max_restarts=0)
 
 
 def hand_paths(
@@ -270,7 +270,7 @@ def reach_score(robot: Robot, path: FloatArray, base: FloatArray) -> float:
     if len(path) == 0:
         return 0.0
     to_base = np.linalg.inv(base)
-    first = solve_ik(robot, to_base @ path[0], options=IKOptions(time_limit=0.2))
+    first = solve_ik(robot, to_base @ path[0], options=IKOptions())
     if not first.success:
         return 0.0
     q, reached = np.asarray(first.q), 1

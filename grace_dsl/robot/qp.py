@@ -6,7 +6,8 @@ Cholesky solves when its guess of the bound constraints settles (99% of the IK s
 limit); :class:`BoxQP` hands the rest to OSQP. OSQP needs its matrices in compressed-column form;
 the sparsity pattern (a full upper triangle, an identity constraint matrix) never changes, so
 the solver is set up once and each step only updates the numbers, keeping OSQP's factorization
-workspace and the previous solution as a warm start.
+workspace; each solve starts cold with the same step size, so it is a function of its problem
+alone, not of the solves before it (an episode is the same whatever the process ran before).
 """
 
 from __future__ import annotations
@@ -67,6 +68,9 @@ def spd_solve(a: FloatArray, b: FloatArray) -> FloatArray | None:
     return x if info == 0 else None
 
 
+RHO = 0.1  # OSQP's default initial ADMM step size, restored before every solve
+
+
 @dataclass
 class BoxQP:
     """``min ½ xᵀ P x + cᵀ x`` over a box, for ``n`` unknowns; :meth:`solve` returns ``x``."""
@@ -88,6 +92,7 @@ class BoxQP:
             self._solver = self._setup(p, c, lo, hi)
         else:
             self._solver.update(Px=values, q=c, l=lo, u=hi)
+            self._solver.update_settings(rho=RHO)  # not the last solve's adapted step size
         result = self._solver.solve(raise_error=False)
         x = np.asarray(result.x, dtype=float)
         if not np.all(np.isfinite(x)):  # OSQP gave up: stay put rather than jump
@@ -109,6 +114,9 @@ class BoxQP:
             eps_rel=self.eps,
             max_iter=self.max_iter,
             polishing=False,  # the outer iteration refines; polishing only prints here
-            warm_starting=True,
+            # a solve depends on its problem alone, not on whichever solve came before it (OSQP
+            # 1.x adapts rho by iteration counts, its time limit is off: nothing timed)
+            warm_starting=False,
+            rho=RHO,
         )
         return solver

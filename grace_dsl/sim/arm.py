@@ -332,14 +332,24 @@ class ArmWorld:
 
     def arm_contact(self) -> bool:
         """An arm link (not the hand) touches the object now."""
-        d = self.data
-        for c in d.contact[: d.ncon]:
-            a, b = int(c.geom1), int(c.geom2)
-            if (a in self.arm_geoms and b in self.object_geoms) or (
-                b in self.arm_geoms and a in self.object_geoms
-            ):
-                return True
-        return False
+        n = self.data.ncon
+        if n == 0:
+            return False
+        pairs = self.data.contact.geom[:n]  # (n, 2), without a Python object per contact
+        arm, obj = self._masks()
+        a, b = pairs[:, 0], pairs[:, 1]
+        return bool(np.any((arm[a] & obj[b]) | (arm[b] & obj[a])))
+
+    def _masks(self) -> tuple[np.ndarray, np.ndarray]:
+        """``arm_geoms`` and ``object_geoms`` as boolean masks over the model's geoms."""
+        if "_geom_masks" not in self.__dict__:
+            arm = np.zeros(self.model.ngeom, bool)
+            obj = np.zeros(self.model.ngeom, bool)
+            arm[list(self.arm_geoms)] = True
+            obj[list(self.object_geoms)] = True
+            object.__setattr__(self, "_geom_masks", (arm, obj))
+        masks: tuple[np.ndarray, np.ndarray] = self.__dict__["_geom_masks"]
+        return masks
 
     def unstable(self) -> bool:
         """The state blew up (MuJoCo flags a bad acceleration and resets it)."""

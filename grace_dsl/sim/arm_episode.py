@@ -31,6 +31,7 @@ import numpy as np
 
 from grace_dsl.robot.act import ActionPlan
 from grace_dsl.robot.model import Robot
+from grace_dsl.robot.plan import PLAN_CHECKS
 from grace_dsl.runtime.errors import GraceError, ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.manipulation import CLEARANCE
@@ -68,9 +69,9 @@ MIN_STAGE = 0.08
 # Plans executed one after another at most: each follows the part as far as the arm reaches,
 # lets go and backs off; the next is planned from where the part and the arm then are
 STAGES = 3
-# s of OMPL for the approach of a partial plan or a later stage (a first plan has the planner's
-# 2 s): its start is near the object, and a loaded machine gives the planner a fraction of it
-LATER = 6.0
+# Collision checks OMPL may spend on the approach of a partial plan or a later stage (a first
+# plan has the planner's default): its start is near the object, where paths are harder to find
+LATER = 3 * PLAN_CHECKS
 PARTIAL_TRIES = 3  # partial plans tried, each shorter than the last failure's reach
 # Fractions of the way a stage is planned to when no grasp carries the part all the way
 SHORTER = (0.5,)
@@ -209,7 +210,7 @@ def plan_episode(
             base=base,
             q_start=q_start,
             seed=seed,
-            time_limit=LATER,
+            checks=LATER,
             also=also,
         )
     except ActionPlanningError as exc:
@@ -316,7 +317,7 @@ def next_stage(
     to = _plan_to(inst, task)
     try:
         return plan_action(
-            robot, inst, task.action, to, base=base, q_start=here, seed=seed, time_limit=LATER
+            robot, inst, task.action, to, base=base, q_start=here, seed=seed, checks=LATER
         )
     except (ActionPlanningError, NoGraspError) as kept:
         if move_base:
@@ -349,7 +350,9 @@ def _plan_partial(
     """A plan to ``REPLAN_AT`` of how far ``failure`` got; a partial plan may itself stop
     earlier (its samples fall elsewhere on the path), so up to ``PARTIAL_TRIES`` times, each to
     ``REPLAN_AT`` of the last failure's reach. Raises the last failure when a plan would move
-    the part less than ``MIN_STAGE`` of the range."""
+    the part less than ``MIN_STAGE`` of the range, unless it ends where the task is done (a
+    laptop lid 0.18 rad open whose last 0.004 rad the fingers cannot follow: a stage to 0.013
+    rad closes it)."""
     from grace_dsl.robot.act import ActionPlanningError, plan_action
 
     lo, hi = inst.joint_limits()[task.joint]
@@ -359,7 +362,9 @@ def _plan_partial(
         if not isinstance(failure, ActionPlanningError) or value is None:
             raise failure
         partial = start + REPLAN_AT * (float(value) - start)
-        if (partial - start) * task.sign < MIN_STAGE * (hi - lo):
+        if (partial - start) * task.sign < MIN_STAGE * (hi - lo) and not _finishes(
+            task, partial, lo, hi
+        ):
             raise failure
         try:
             return plan_action(
@@ -370,12 +375,20 @@ def _plan_partial(
                 base=base,
                 q_start=q_start,
                 seed=seed,
-                time_limit=LATER,
+                checks=LATER,
                 also=also,
             )
         except ActionPlanningError as exc:
             failure = exc
     raise failure
+
+
+def _finishes(task: TaskAction, value: float, lo: float, hi: float) -> bool:
+    """Whether the part at ``value`` is where the stages stop: past ``OPEN_ENOUGH`` of the
+    range for an open, within ``CLOSE_ENOUGH`` of the closed end for a close."""
+    if task.sign > 0:
+        return value >= lo + OPEN_ENOUGH * (hi - lo)
+    return value <= lo + CLOSE_ENOUGH * (hi - lo)
 
 
 def _interleave(scored: list[np.ndarray], fixed: list[np.ndarray], count: int) -> list[np.ndarray]:

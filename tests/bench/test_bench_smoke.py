@@ -19,6 +19,7 @@ SCRIPTS = sorted(p.name for p in (ROOT / "bench").glob("bench_*.py"))
 def test_every_script_is_smoke_tested() -> None:
     assert SCRIPTS == [
         "bench_adversarial.py",
+        "bench_arm_time.py",
         "bench_draw_yield.py",
         "bench_eval.py",
         "bench_furniture_fit.py",

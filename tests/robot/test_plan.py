@@ -26,7 +26,7 @@ def blocked(panda: Robot, lib):  # type: ignore[no-untyped-def]
 @pytest.mark.slow
 def test_a_path_goes_around_the_object(panda: Robot, blocked) -> None:  # type: ignore[no-untyped-def]
     scene, start, goal = blocked
-    path = plan_path(scene, start, goal, time_limit=5.0, seed=3)
+    path = plan_path(scene, start, goal, seed=3)
     np.testing.assert_allclose(path[0], start)
     np.testing.assert_allclose(path[-1], goal, atol=1e-9)
     assert np.all(path >= panda.lower - 1e-12) and np.all(path <= panda.upper + 1e-12)

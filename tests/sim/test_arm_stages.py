@@ -65,3 +65,17 @@ def test_a_later_stage_places_the_base_for_the_rest_of_the_path(lib) -> None:  #
     assert float(np.linalg.norm(chosen[:2, 3] - first[:2, 3])) > 0.3
     assert max(reach_score(robot, p, first) for p in paths) < 0.5
     assert max(reach_score(robot, p, chosen) for p in paths) == 1.0
+
+
+def test_a_short_stage_that_finishes_the_task_is_worth_planning() -> None:
+    """A stage shorter than ``MIN_STAGE`` is refused unless it ends where the task is done:
+    Laptop close seed 1 (0.18 rad left after stage 1, the fingers touching the base in the last
+    0.004 rad) planned a stage to 0.013 rad only with this."""
+    from grace_dsl.sim.arm_episode import CLOSE_ENOUGH, OPEN_ENOUGH, _finishes
+    from grace_dsl.sim.protocol import TaskAction
+
+    close, open_ = TaskAction("close", "hinge", -1.0), TaskAction("open", "hinge", 1.0)
+    lo, hi = 0.0, 2.356
+    assert _finishes(close, 0.013, lo, hi) and not _finishes(close, 0.2, lo, hi)
+    assert _finishes(close, CLOSE_ENOUGH * hi, lo, hi)
+    assert _finishes(open_, OPEN_ENOUGH * hi + 1e-9, lo, hi) and not _finishes(open_, 1.0, lo, hi)
