@@ -27,7 +27,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_sim import CATEGORIES, SMALL, TASKS, print_table, summarize  # noqa: E402
+from bench_sim import (  # noqa: E402
+    CATEGORIES,
+    SMALL,
+    TASKS,
+    episode_seed,
+    print_table,
+    summarize,
+)
 
 from grace_dsl.sim.arm_episode import run_arm_episode_fixed_base  # noqa: E402
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord  # noqa: E402
@@ -114,7 +121,9 @@ def run_all(
     """Every (category, task, episode), seed by seed (so that an interrupted run, its ``log``
     kept, has covered every category evenly), on ``workers`` processes with a progress bar.
     Episodes already in ``log`` or in ``reuse`` are taken from there, not run again."""
-    jobs = [(c, t, seed + i) for i in range(episodes) for c in categories for t in tasks]
+    jobs = [
+        (c, t, episode_seed(seed, i)) for i in range(episodes) for c in categories for t in tasks
+    ]
     done = {_key(r): r for r in read_log(log)} if log is not None and log.exists() else {}
     done = {**(reuse or {}), **done}
     todo = [
