@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from grace_dsl.perception.errors import PointCloudError
-from grace_dsl.perception.fit import CAUCHY, fit
+from grace_dsl.perception.fit import CAUCHY, FitResult, fit
 from grace_dsl.perception.labels import check_labels, subsample
 from grace_dsl.perception.types import Estimate
 from grace_dsl.perception.views import join_params, split_params
@@ -141,6 +141,13 @@ def estimate(
         seed=seed,
         labels=parts,
     )
+    return from_fit(concept, result, len(pts), source, start)
+
+
+def from_fit(
+    concept: Concept, result: FitResult, points: int, source: str, start: float
+) -> Estimate:
+    """The ``Estimate`` of a fit of ``points`` points begun at ``start`` (``perf_counter``)."""
     floats, discrete = split_params(concept, result.params)
     spread = (
         {}
@@ -153,7 +160,7 @@ def estimate(
         pose=result.pose,
         joints=result.joints,
         residual=result.residual,
-        confidence=confidence(result.residual, result.inliers, len(pts), result.part_inliers),
+        confidence=confidence(result.residual, result.inliers, points, result.part_inliers),
         seconds=time.perf_counter() - start,
         source=source,
         discrete=discrete,

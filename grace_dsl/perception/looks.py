@@ -23,7 +23,7 @@ import numpy as np
 from grace_dsl.perception.errors import PerceptionError
 from grace_dsl.perception.labels import UNLABELLED, check_labels, subsample
 from grace_dsl.perception.types import Estimate
-from grace_dsl.perception.views import join_params, split_params
+from grace_dsl.perception.views import join_params
 from grace_dsl.runtime.library import Concept
 
 #: per look, as ``estimate``'s one cloud: the fit thins each look's labelled share itself
@@ -131,7 +131,7 @@ def estimate_looks(
     parameter values, in that frame), each of ``starts`` (estimates in that frame: single
     looks' fits), or, when none is given, each look's fit alone in its camera's frame (its
     facing-plane starts), carried into the shared frame; the fused stages then screen them."""
-    from grace_dsl.perception.estimate import confidence, estimate
+    from grace_dsl.perception.estimate import estimate, from_fit
     from grace_dsl.perception.fit import labelled_fit
 
     start = time.perf_counter()
@@ -171,18 +171,7 @@ def estimate_looks(
         views=[(c.points, c.camera[:3, 3]) for c in checked],
         starts=extra,
     )
-    floats, discrete = split_params(concept, result.params)
-    return Estimate(
-        concept=concept.name,
-        params=floats,
-        pose=result.pose,
-        joints=result.joints,
-        residual=result.residual,
-        confidence=confidence(result.residual, result.inliers, len(points), result.part_inliers),
-        seconds=time.perf_counter() - start,
-        source=source,
-        discrete=discrete,
-    )
+    return from_fit(concept, result, len(points), source, start)
 
 
 def _start(

@@ -95,3 +95,6 @@ def test_two_looks_recover_what_neither_look_alone_does(lib) -> None:
     origin = 1000 * float(np.linalg.norm(est.pose[:3, 3] - inst.pose[:3, 3]))
     assert max(both.values()) < 8, both
     assert origin < 6 and est.confidence > 0.8, (origin, est.confidence)
+    # the fused fit reports its spread like a single look's (one per float parameter)
+    assert set(est.spread) == set(est.params)
+    assert all(0 < s < float("inf") for s in est.spread.values()), est.spread
