@@ -59,6 +59,7 @@ from grace_dsl.sim.episode import (
 from grace_dsl.sim.protocol import (
     CLOSE_GOAL,
     TaskAction,
+    strict_success,
 )
 from grace_dsl.sim.records import EpisodeConfig, EpisodeRecord
 
@@ -67,8 +68,9 @@ REPLAN_AT = 0.95  # an action that plans only part of the way is replanned to th
 # A plan that moves the part less than this fraction of the range is not worth executing
 MIN_STAGE = 0.08
 # Plans executed one after another at most: each follows the part as far as the arm reaches,
-# lets go and backs off; the next is planned from where the part and the arm then are
-STAGES = 3
+# lets go and backs off; the next is planned from where the part and the arm then are (a wide
+# door brushed on the way in and closed part-way may take a fourth)
+STAGES = 4
 # Collision checks OMPL may spend on the approach of a partial plan or a later stage (a first
 # plan has the planner's default): its start is near the object, where paths are harder to find
 LATER = 3 * PLAN_CHECKS
@@ -448,9 +450,13 @@ def execute_stages(
         q = outcome.q_final
         done = q >= lo + OPEN_ENOUGH * span if task.sign > 0 else q <= lo + CLOSE_ENOUGH * span
         moved = abs(q - float(inst.joints[task.joint]))
-        if done or outcome.unstable or not outcome.arrived or stage == STAGES - 1:
+        if done or outcome.unstable or stage == STAGES - 1:
             break
-        if moved < 0.01 * span or left <= 0.0:
+        # an arm stopped on its way in that still moved the part (a wide door it brushed, then
+        # pushed part-way) plans again from where the part is, as after a stage that ended,
+        # unless the task already counts as done
+        reached = strict_success("open" if task.sign > 0 else "close", q, lo, hi)
+        if (not outcome.arrived and reached) or moved < 0.01 * span or left <= 0.0:
             break
         inst = inst.with_joints({task.joint: q})
         here = np.clip(world.arm_q(), robot.lower, robot.upper)  # a motor may overshoot
