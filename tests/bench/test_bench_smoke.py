@@ -49,16 +49,7 @@ def test_every_script_is_smoke_tested() -> None:
 @pytest.mark.parametrize("script", SCRIPTS)
 def test_smoke_run(script: str, tmp_path: Path) -> None:
     out = tmp_path / "result.json"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}  # this checkout's grace_dsl; the test cache
-    run = subprocess.run(
-        [sys.executable, str(ROOT / "bench" / script), "--smoke", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-        timeout=300,
-    )
-    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    run = _smoke(script, out, tmp_path)
     result = json.loads(out.read_text())
     assert result, script
     assert run.stdout.strip()
@@ -71,16 +62,22 @@ def test_smoke_run(script: str, tmp_path: Path) -> None:
 def test_perception_labels_smoke(tmp_path: Path) -> None:
     """bench_perception's part-labelled rows (``--labels``) at the smoke size."""
     out = tmp_path / "result.json"
+    _smoke("bench_perception.py", out, tmp_path, "--labels")
+    result = json.loads(out.read_text())
+    assert result["modes"] == ["fit"] and "StraightHandle" in result["concepts"]
+
+
+def _smoke(script: str, out: Path, cwd: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    """``bench/<script> --smoke [extra] --out <out>`` with this checkout's grace_dsl (and the
+    test cache), asserting it exits 0."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     run = subprocess.run(
-        [sys.executable, str(ROOT / "bench" / "bench_perception.py"), "--smoke", "--labels"]
-        + ["--out", str(out)],
+        [sys.executable, str(ROOT / "bench" / script), "--smoke", *extra, "--out", str(out)],
         capture_output=True,
         text=True,
         env=env,
-        cwd=tmp_path,
+        cwd=cwd,
         timeout=300,
     )
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
-    result = json.loads(out.read_text())
-    assert result["modes"] == ["fit"] and "StraightHandle" in result["concepts"]
+    return run
