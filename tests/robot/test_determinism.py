@@ -42,17 +42,6 @@ class Slowed:
         return self.scene.contacts(q)
 
 
-@pytest.fixture(scope="module")
-def blocked(panda: Robot, lib):  # type: ignore[no-untyped-def]
-    """A drawer in front of the robot, between two swings of the first joint."""
-    pose = np.eye(4)
-    pose[:3, 3] = (0.4, 0.0, 0.45)
-    scene = collision_scene(panda, lib["CabinetDrawer"].instantiate(pose=pose))
-    start, goal = panda.home.copy(), panda.home.copy()
-    start[0], goal[0] = -1.2, 1.2
-    return scene, start, goal
-
-
 def _other_plan(panda: Robot, scene: CollisionScene) -> None:
     """A different problem planned in between: it draws from OMPL's generators."""
     start, goal = panda.home.copy(), panda.home.copy()

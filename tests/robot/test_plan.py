@@ -8,19 +8,7 @@ import pytest
 import grace_dsl as eac
 from grace_dsl.robot.collision import collision_scene
 from grace_dsl.robot.model import Robot
-from grace_dsl.robot.plan import PlanningError, plan_path, segment_free, time_path
-
-
-@pytest.fixture(scope="module")
-def blocked(panda: Robot, lib):  # type: ignore[no-untyped-def]
-    """A drawer in front of the robot, between two swings of the first joint."""
-    pose = np.eye(4)
-    pose[:3, 3] = (0.4, 0.0, 0.45)
-    scene = collision_scene(panda, lib["CabinetDrawer"].instantiate(pose=pose))
-    start, goal = panda.home.copy(), panda.home.copy()
-    start[0], goal[0] = -1.2, 1.2
-    assert not segment_free(scene, start, goal, 0.01)  # the straight swing hits the drawer
-    return scene, start, goal
+from grace_dsl.robot.plan import PlanningError, plan_path, time_path
 
 
 @pytest.mark.slow
