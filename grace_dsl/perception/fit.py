@@ -644,6 +644,7 @@ def fit(
 PART_WEIGHT = 0.01
 LABEL_SCREEN = 5  # near-least-squares iterations per labelled start before the best is kept
 LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane)
+LEARNED_OWN = LABEL_PLANES + 2  # of the fit's own starts screened beside a learned one
 LABEL_POINTS = 384  # the labelled fit's points (every part keeps a share: ``subsample``)
 LABEL_FREE = 768  # and free-space points
 LABEL_MARGIN = 0.1  # of the extent: the band outside the outline the free rays are drawn in
@@ -711,7 +712,7 @@ def labelled_fit(
             own = labelled_variant(concept, concept.instantiate().params, labels)
             own_states = joint_starts(feasible_instance(concept, own))[:1]
             cands += plane_starts(concept, points, own, own_states, camera, seed, draws=0)[
-                : LABEL_PLANES + 2
+                :LEARNED_OWN
             ]
     if not cands:
         rots = None if hint is None else [hint[:3, :3]]
