@@ -675,8 +675,11 @@ def labelled_fit(
     part to its own points from anywhere (the first stage is nearly least squares), so few
     starts are needed and the joints come from the labelled links: the learned or hinted pose,
     one start per facing plane and the discrete variants of the best, or one ICP start when no
-    plane faces the camera. Each is screened by ``LABEL_SCREEN`` iterations of the first stage,
-    the best goes on through the narrower scales.
+    plane faces the camera; with a learned start, the fit's own facing starts beside it (a
+    network's wrong size or pose must beat them). Each is screened by ``LABEL_SCREEN``
+    iterations of the first stage (ranked with the worst part's inliers, ``_label_score``);
+    the best finishes that stage, is screened against its known local minima (``_restarted``)
+    and goes on through the narrower scales.
 
     ``views``: when ``points`` joins the clouds of several cameras (fused looks, one frame),
     each camera's own cloud and position, (points (M, 3), camera (3,)): free space and the
@@ -785,9 +788,7 @@ def _restarted(
     local minima of the first stage (``perception.start.restarts``), each given
     ``LABEL_SCREEN`` iterations of the first stage; a winner gets the rest of that stage."""
     tried = [best]
-    for pose, params, joints in restarts(
-        concept, points, labels, best.pose, best.params, best.joints
-    ):
+    for pose, params, joints in restarts(concept, best.pose, best.params, best.joints):
         tried.append(
             _stage(concept, points, labels, free, outline, pose, params, joints, LABEL_CAUCHY)
         )

@@ -345,8 +345,6 @@ RESTART_JOINT = 0.02  # m or rad: a joint further than this from closed is resta
 
 def restarts(
     concept: Concept,
-    points: np.ndarray,
-    labels: np.ndarray,
     pose: np.ndarray,
     params: Mapping[str, Any],
     joints: Mapping[str, float],

@@ -16,11 +16,11 @@ HELDOUT = 1_000_003
 def test_restarts_close_an_opened_joint_and_leave_a_closed_one(lib) -> None:
     concept = lib["CabinetDrawer"]
     params = concept.instantiate().params
-    pose, labels, pts = np.eye(4), np.array(["panel"]), np.zeros((1, 3))
-    starts = restarts(concept, pts, labels, pose, params, {"slide": 0.08})
+    pose = np.eye(4)
+    starts = restarts(concept, pose, params, {"slide": 0.08})
     assert [s[2] for s in starts] == [{"slide": 0.0}]
     assert starts[0][1] == params and starts[0][0] is pose
-    assert restarts(concept, pts, labels, pose, params, {"slide": 0.01}) == []
+    assert restarts(concept, pose, params, {"slide": 0.01}) == []
 
 
 @pytest.mark.slow
