@@ -374,6 +374,18 @@ def main() -> int:
             m: float(np.mean(np.array(v) <= 5.0)) if v else None for m, v in sure.items()
         },
         "sure_share": {m: len(sure[m]) / max(len(lengths[m]), 1) for m in modes},
+        # the target is about what the view determines: the headline share is over the
+        # length estimates each view constrains (``constrained``), with how many those are; the
+        # rest (a closed drawer's travel, an absent handle kind's size) stay in the "all" share
+        "headline": {
+            m: {
+                "within_5mm_seen": float(np.mean(np.array(seen[m]) <= 5.0)) if seen[m] else None,
+                "seen_estimates": len(seen[m]),
+                "all_estimates": len(lengths[m]),
+                "within_5mm_all": overall[m],
+            }
+            for m in modes
+        },
         "seconds": time.perf_counter() - start,
         "machine": f"{platform.machine()}, {os.cpu_count()} cpus, "
         f"python {platform.python_version()}",
@@ -382,7 +394,12 @@ def main() -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"within 5 mm (all length parameters): {overall}; {result['seconds']:.0f} s")
-    print(f"within 5 mm (the lengths each view constrains): {result['within_5mm_seen']}")
+    for m, h in result["headline"].items():
+        print(
+            f"headline {m}: {100 * (h['within_5mm_seen'] or 0):.1f} % within 5 mm of the "
+            f"{h['seen_estimates']} length estimates the views constrain "
+            f"({100 * (h['within_5mm_all'] or 0):.1f} % of all {h['all_estimates']})"
+        )
     print(
         f"within 5 mm (the lengths reported sure): {result['within_5mm_sure']}, "
         f"share sure {result['sure_share']}"

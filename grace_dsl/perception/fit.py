@@ -35,7 +35,7 @@ from grace_dsl.perception.model import (
     sdf_model,
 )
 from grace_dsl.perception.outline import Outline, nearest_points, outline_rays
-from grace_dsl.perception.start import feasible_instance, plane_starts
+from grace_dsl.perception.start import feasible_instance, plane_starts, restarts
 from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.runtime.instance import Instance
 from grace_dsl.runtime.library import Concept
@@ -639,8 +639,12 @@ def fit(
     return best
 
 
+# of the robust residual: a labelled part whose points all lie off its shapes costs what a
+# 10 mm mean residual does
+PART_WEIGHT = 0.01
 LABEL_SCREEN = 5  # near-least-squares iterations per labelled start before the best is kept
 LABEL_PLANES = 3  # facing-plane starts screened with labels (one per plane)
+LEARNED_OWN = LABEL_PLANES + 2  # of the fit's own starts screened beside a learned one
 LABEL_POINTS = 384  # the labelled fit's points (every part keeps a share: ``subsample``)
 LABEL_FREE = 768  # and free-space points
 LABEL_MARGIN = 0.1  # of the extent: the band outside the outline the free rays are drawn in
@@ -671,8 +675,11 @@ def labelled_fit(
     part to its own points from anywhere (the first stage is nearly least squares), so few
     starts are needed and the joints come from the labelled links: the learned or hinted pose,
     one start per facing plane and the discrete variants of the best, or one ICP start when no
-    plane faces the camera. Each is screened by ``LABEL_SCREEN`` iterations of the first stage,
-    the best goes on through the narrower scales.
+    plane faces the camera; with a learned start, the fit's own facing starts beside it (a
+    network's wrong size or pose must beat them). Each is screened by ``LABEL_SCREEN``
+    iterations of the first stage (ranked with the worst part's inliers, ``_label_score``);
+    the best finishes that stage, is screened against its known local minima (``_restarted``)
+    and goes on through the narrower scales.
 
     ``views``: when ``points`` joins the clouds of several cameras (fused looks, one frame),
     each camera's own cloud and position, (points (M, 3), camera (3,)): free space and the
@@ -704,6 +711,12 @@ def labelled_fit(
     if facing and camera is None and views is None:  # a hint is screened against the planes too
         planes = plane_starts(concept, points, inst.params, states, camera, seed, draws=0)
         cands += planes[: LEARNED_PLANES if hint is not None else LABEL_PLANES + 2]
+        if init:  # the fit's own starts too: a network's wrong size or pose must not win alone
+            own = labelled_variant(concept, concept.instantiate().params, labels)
+            own_states = joint_starts(feasible_instance(concept, own))[:1]
+            cands += plane_starts(concept, points, own, own_states, camera, seed, draws=0)[
+                :LEARNED_OWN
+            ]
     if not cands:
         rots = None if hint is None else [hint[:3, :3]]
         cands = global_init(concept, points, base, rots, seed, init_joints)[:2]
@@ -718,20 +731,32 @@ def labelled_fit(
         tried.append(
             _stage(concept, points, labels, free, outline, cands[0][1], base, states[0], 0.3)
         )
-    best = min(tried, key=_score)
-    for scale, steps in ((LABEL_CAUCHY, 15), (WIDE_CAUCHY, LABEL_SCREEN)):
-        best = _stage(
-            concept,
-            points,
-            labels,
-            free,
-            outline,
-            best.pose,
-            best.params,
-            best.joints,
-            scale,
-            steps,
-        )
+    best = min(tried, key=_label_score)
+    best = _stage(
+        concept,
+        points,
+        labels,
+        free,
+        outline,
+        best.pose,
+        best.params,
+        best.joints,
+        LABEL_CAUCHY,
+        15,
+    )
+    best = _restarted(concept, points, labels, free, outline, best)
+    best = _stage(
+        concept,
+        points,
+        labels,
+        free,
+        outline,
+        best.pose,
+        best.params,
+        best.joints,
+        WIDE_CAUCHY,
+        LABEL_SCREEN,
+    )
     # the last stage keeps the requirements (a real instance meets them), from the nearest
     # start that meets them: the earlier stages may cross them on the way (a height and a
     # handle's place move together), which a strict fit's refused steps could not
@@ -748,6 +773,39 @@ def labelled_fit(
         CAUCHY,
         iterations,
         True,
+    )
+
+
+def _restarted(
+    concept: Concept,
+    points: np.ndarray,
+    labels: np.ndarray,
+    free: np.ndarray,
+    outline: Outlines,
+    best: FitResult,
+) -> FitResult:
+    """``best`` (after the first stage) or a restart from it that screens lower: the known
+    local minima of the first stage (``perception.start.restarts``), each given
+    ``LABEL_SCREEN`` iterations of the first stage; a winner gets the rest of that stage."""
+    tried = [best]
+    for pose, params, joints in restarts(concept, best.pose, best.params, best.joints):
+        tried.append(
+            _stage(concept, points, labels, free, outline, pose, params, joints, LABEL_CAUCHY)
+        )
+    won = min(tried, key=_label_score)
+    if won is best:
+        return best
+    return _stage(
+        concept,
+        points,
+        labels,
+        free,
+        outline,
+        won.pose,
+        won.params,
+        won.joints,
+        LABEL_CAUCHY,
+        15 - LABEL_SCREEN,
     )
 
 
@@ -820,6 +878,13 @@ def _stage(
         fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels, strict)
     seen = outline if scale <= OUTLINE_SCALE else None
     return fitter.run(points, pose, np.zeros(3), iterations, free, seen)
+
+
+def _label_score(r: FitResult) -> float:
+    """``_score`` plus the share of the worst labelled part's points off its own shapes: a
+    start that ends with the door's points on the cabinet (a flip, the hinge's wrong side) fits
+    the rest as well as the right one, but a part's points far from its part mark it."""
+    return _score(r) + PART_WEIGHT * (1 - r.part_inliers)
 
 
 def _score(r: FitResult) -> float:

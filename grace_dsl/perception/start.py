@@ -336,3 +336,29 @@ def shape_free(concept: Concept) -> frozenset[str]:
     drawer's ``travel`` only bounds its slide): no view shows them, so an estimate can only
     keep them at its start (the dataset's typical value)."""
     return _shape_free(concept)
+
+
+# -- restarts from the first stage's result: the local minima it is known to end in ----------
+
+RESTART_JOINT = 0.02  # m or rad: a joint further than this from closed is restarted closed
+
+
+def restarts(
+    concept: Concept,
+    pose: np.ndarray,
+    params: Mapping[str, Any],
+    joints: Mapping[str, float],
+) -> list[tuple[np.ndarray, dict[str, Any], dict[str, float]]]:
+    """Starts near a first-stage result (concept pose in the points' frame, parameters,
+    joints) that leave the local minima it is known to end in, to be screened against it.
+
+    - Joints closed: an open drawer's slide and its handle's standoff trade against each other
+      (the bar stays on its points while the slide overshoots and the posts shrink); from the
+      same pose and parameters with the joints closed the parts' own points pull the slide out
+      to where the panel is, and the standoff follows."""
+    out: list[tuple[np.ndarray, dict[str, Any], dict[str, float]]] = []
+    limits = feasible_instance(concept, params).joint_limits() if joints else {}
+    closed = {k: float(max(limits[k][0], -math.pi)) if k in limits else 0.0 for k in joints}
+    if joints and max(abs(v - closed[k]) for k, v in joints.items()) > RESTART_JOINT:
+        out.append((pose, dict(params), closed))
+    return out
