@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime import masks
 from grace_dsl.runtime.concept import (
     check_domain,
@@ -25,7 +26,6 @@ from grace_dsl.runtime.concept import (
     check_requirements,
     suggest,
 )
-from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime.errors import (
     EvaluationError,
     GraceError,

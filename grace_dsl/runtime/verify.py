@@ -8,7 +8,9 @@ instance at a random world pose, and at its joints closed (q = 0) and at random 
 for every grasp family (parts' grasps included) at several free-parameter values:
 
 ``near``         the origin lies within 5 mm of the part it grasps (signed distance of the shapes
-                 of the grasp's link, only the part's own shapes for a part's grasp);
+                 of the grasp's link, only the part's own shapes for a part's grasp); for a hook,
+                 the middle of the side its closed fingers rest on (origin + x * half the pads'
+                 thickness along x): its wall is on +x, and its fingertips hang free;
 ``between``      pinch: material lies between the pads, on the segment between their inner faces
                  through the origin;
 ``width``        pinch: 0 < width <= the gripper's opening (the declared width, else the width of
@@ -26,6 +28,14 @@ and for every action, for the grasps it uses (``using``, else the grasps on the 
 ``unit_force``   toward a fixed direction: the force is a unit vector;
 ``follow``       ``inst.follow`` keeps the grasp attached to its link: G_k = L(q_k) L(q_0)^-1 G_0
                  to 1e-6, with L the link pose computed independently.
+
+A grasp family with a ``when`` condition is checked (with the actions that use it) only at joint
+states where the condition holds: the closed joints and the random values when it holds there,
+else up to ``WHEN_TRIES`` more random joint states per draw until it does. A family whose
+condition held in no draw fails
+
+``applies``      the ``when`` held at none of the joint states tried (a condition that cannot hold
+                 in the ranges, or one much narrower than them).
 
 Before those, every draw must be computable, or it fails instead of crashing the run:
 
@@ -355,7 +365,7 @@ def verify_concept(
             )
     specs = scaled_specs(concept, scale)
     rng = np.random.default_rng(seed)
-    run = _Run(concept, gripper, rng, hand_limits=scale != 1.0)
+    run = _Run(concept, gripper, rng, scale != 1.0, np.random.default_rng([seed, 1]))
     accepted = attempts = 0
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
@@ -513,6 +523,7 @@ class _Run:
         gripper: Gripper,
         rng: np.random.Generator,
         hand_limits: bool = False,
+        when_rng: np.random.Generator | None = None,
     ):
         self.concept, self.gripper, self.rng = concept, gripper, rng
         # at a scale other than 1, a pinch wider than the hand opens is the hand's limit (it
@@ -529,7 +540,7 @@ class _Run:
         self.applied = dict.fromkeys(self.conditional, 0)
         # the joint values drawn for them come from their own stream, so that the draws of
         # parameters and of the two joint states stay those of a concept without a `when`
-        self._when_rng = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0])
+        self._when_rng = when_rng or np.random.default_rng(0)
 
     @property
     def failures(self) -> tuple[Failure, ...]:
