@@ -100,3 +100,32 @@ def test_verify_measures_a_hook_from_the_side_it_rests_on(tray: eac.Concept) -> 
     for hand in ("panda", "pusher", "topdown"):
         report = verify_concept(tray, draws=2, seed=1, gripper=eac.Gripper.load(hand))
         assert not [f for f in report.failures if f.check == "near"], hand
+
+
+@pytest.mark.slow
+def test_the_pusher_lifts_an_ajar_laptop_lid_from_below_in_mujoco() -> None:
+    """A real episode of a conditional family: the hand that cannot close opens a laptop whose
+    lid is ajar by pushing it up from below (`lift_under`, `when hinge > 8deg`); on a shut lid
+    rank offers no option (the lip is a fingernail's grip)."""
+    pytest.importorskip("mujoco")
+    import math
+    import time
+
+    from grace_dsl.sim.episode import Start, run_episode, start_episode
+    from grace_dsl.sim.records import EpisodeConfig
+    from grace_dsl.sim.runner import episode_seed
+
+    config = EpisodeConfig("Laptop", "open", hand="pusher")
+    ajar = None
+    for i in range(40):
+        seed = episode_seed(0, "Laptop", "open", i)
+        start = start_episode(config, seed, time.perf_counter())
+        assert isinstance(start, Start)
+        q = start.inst.joints["hinge"]
+        if math.radians(10) < q < math.radians(40):  # ajar, and far from the strict 50%
+            ajar = seed
+            break
+    assert ajar is not None
+    record = run_episode(config, ajar)
+    assert record.option == "lift_under (push)", record.detail
+    assert record.strict, record.detail
