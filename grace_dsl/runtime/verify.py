@@ -382,7 +382,7 @@ def verify_concept(
             continue
         accepted += 1
         run.check_draw(inst)
-    run.never_applied(accepted)
+    run.never_applied()
     note = ""
     if accepted < draws:
         note = (
@@ -538,6 +538,7 @@ class _Run:
         # families with a `when`: checked only where it holds; how many draws checked each
         self.conditional = {n for n, g in concept.grasps.items() if g.when is not None}
         self.applied = dict.fromkeys(self.conditional, 0)
+        self.present = dict.fromkeys(self.conditional, 0)  # draws that have the family at all
         # the joint values drawn for them come from their own stream, so that the draws of
         # parameters and of the two joint states stay those of a concept without a `when`
         self._when_rng = when_rng or np.random.default_rng(0)
@@ -555,6 +556,8 @@ class _Run:
         self._worst = {}
         here = presence(inst.concept.entry, inst.params)
         pending = {g for g in self.conditional if here(g)}
+        for g in pending:
+            self.present[g] += 1
         states = [False, True, *([None] * WHEN_TRIES)]  # None: joints drawn for a `when`
         for moved in states:
             if moved is None and not pending:
@@ -578,13 +581,17 @@ class _Run:
                 break
         self._failures += [f for _, f in self._worst.values()]
 
-    def never_applied(self, draws: int) -> None:
+    def never_applied(self) -> None:
         """An ``applies`` failure for each grasp family whose ``when`` held in none of the
-        draws (at the closed joints, random ones, or ``WHEN_TRIES`` more drawn for it)."""
+        draws that have it (at the closed joints, random ones, or ``WHEN_TRIES`` more drawn for
+        it); a repeated copy or variant option no draw has is not one."""
         for g in sorted(self.conditional):
-            self.evaluated["applies"] += 1
-            if self.applied[g] or not draws:
+            if not self.present[g]:
                 continue
+            self.evaluated["applies"] += 1
+            if self.applied[g]:
+                continue
+            draws = self.present[g]
             spec = self.concept.grasps[g]
             at = f" ({spec.when_where})" if spec.when_where else ""
             message = (
