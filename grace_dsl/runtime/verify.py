@@ -389,6 +389,9 @@ def verify_concept(
             f"only {accepted} of {attempts} draws satisfy the requirements "
             f"({accepted / attempts:.1%}); stopped after {cap} attempts"
         )
+    if run.never:
+        never = ", ".join(sorted(run.never))
+        note = "; ".join(x for x in (note, f"never applies at {scale:g}x: {never}") if x)
     if run.too_wide:
         wide = ", ".join(sorted(run.too_wide))
         note = "; ".join(
@@ -539,6 +542,7 @@ class _Run:
         self.conditional = {n for n, g in concept.grasps.items() if g.when is not None}
         self.applied = dict.fromkeys(self.conditional, 0)
         self.present = dict.fromkeys(self.conditional, 0)  # draws that have the family at all
+        self.never: set[str] = set()  # at a scale: families whose `when` never held (noted)
         # the joint values drawn for them come from their own stream, so that the draws of
         # parameters and of the two joint states stay those of a concept without a `when`
         self._when_rng = when_rng or np.random.default_rng(0)
@@ -590,6 +594,9 @@ class _Run:
                 continue
             self.evaluated["applies"] += 1
             if self.applied[g]:
+                continue
+            if self.hand_limits:  # at a scale: a contact the hand needs may not exist there
+                self.never.add(g)
                 continue
             draws = self.present[g]
             spec = self.concept.grasps[g]
