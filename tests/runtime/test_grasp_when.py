@@ -94,6 +94,13 @@ def test_verify_checks_the_family_only_where_it_applies(tmp_path: Path, tray: ea
     assert never.evaluated["penetration"] == 0
 
 
+@pytest.mark.slow
+def test_at_a_scale_a_family_that_never_applies_is_noted_not_failed(tmp_path: Path) -> None:
+    """The hand does not scale with the object: a contact too small for it there is its limit."""
+    report = verify_concept(_tray(tmp_path, "when width > 10m", "huge"), draws=2, seed=0, scale=2.0)
+    assert report.ok and "never applies at 2x: hook_top" in report.note
+
+
 def test_verify_measures_a_hook_from_the_side_it_rests_on(tray: eac.Concept) -> None:
     """The fingertips' centre is 9.75 mm behind the front, their +x side 1 mm: `near` passes for
     every shipped hand (pads 17-17.5 mm thick along x)."""
