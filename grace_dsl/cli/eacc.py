@@ -361,6 +361,8 @@ def cmd_explain(args: argparse.Namespace) -> int:
         print_text(f"grasp {g['name']}({free}) on link {g['link']}, by {how}", style="bold")
         if g["doc"]:
             print_text("  " + g["doc"].replace("\n", "\n  "))
+        if g.get("when"):
+            print_text(f"  applies only when {g['when']['condition']} ({g['when']['where']})")
         if "." in g["name"]:
             part = g["name"].rsplit(".", 1)[0]
             print_text(

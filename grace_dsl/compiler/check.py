@@ -463,8 +463,32 @@ class _ConceptChecker:
             te = self.expr(g.about)
             if not (te.type.kind == "vec" and te.type.size == 3) and te.type is not ERR:
                 self.err("E230", f"a symmetry axis is a 3-vector, not {_a(te.type)}", g.about.span)
+        if g.when is not None:
+            self._when(g.when, free)
         self.free_types[g.name] = free
         self.scope = {}
+
+    def _when(self, cond: ast.Expr, free: dict[str, Type]) -> None:
+        """A grasp's ``when``: a condition on the parameters, lets and the values of the
+        concept's moving joints (an angle for a revolute or continuous joint, a length for a
+        prismatic one), never on the family's own free parameters (E238: their range says where
+        the family is, the condition when it applies)."""
+        for n in ast.names_in(cond):
+            if n.id in free:
+                self.err(
+                    "E238",
+                    f"`{n.id}` is a free parameter of this grasp: a `when` condition reads the "
+                    "concept's parameters and joint values",
+                    n.span,
+                    f"narrow the range of `{n.id}` instead: `{n.id} in [lo, hi]`",
+                )
+                return
+        self.scope = {
+            j.name: T.num(LENGTH if j.kind == "prismatic" else ANGLE)
+            for j in self.members.values()
+            if isinstance(j, ast.Joint) and j.kind != "fixed"
+        }
+        self._expect_bool(self.expr(cond), cond.span)
 
     def _action(self, a: ast.Action) -> None:
         if a.verb not in VERBS:
@@ -650,8 +674,14 @@ class _ConceptChecker:
             self.incomplete = True  # a declaration lost to a syntax error: stay quiet
             return ERR
         if e.id in self.members:
-            kind = type(self.members[e.id]).__name__.lower()
-            self.err("E202", f"`{e.id}` is a {kind}, not a value", e.span)
+            member = self.members[e.id]
+            kind = type(member).__name__.lower()
+            hint = None
+            if isinstance(member, ast.Joint) and member.kind != "fixed":
+                hint = "a joint's value may be read only in a grasp's `when` condition"
+            elif isinstance(member, ast.Joint):
+                hint = "a fixed joint has no value"
+            self.err("E202", f"`{e.id}` is a {kind}, not a value", e.span, hint)
             return ERR
         if e.id in self.free_names:
             self.err(

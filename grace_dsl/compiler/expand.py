@@ -33,6 +33,20 @@ VARIANT_SEP = "@"  # ``handle@bar``: the part that option "bar" of variant part 
 Cond = tuple[tuple[str, int | str], ...]  # (count parameter, k): n > k; (choice, option): ==
 _INDEXED = re.compile(r"^(.*?)((?:\[-?\d+\])+)$")
 
+# the fields of a declaration that hold an expression
+EXPR_FIELDS = (
+    "value",
+    "at",
+    "cond",
+    "pose",
+    "width",
+    "about",
+    "when",
+    "axis",
+    "origin",
+    "direction",
+)
+
 
 def expand(module: ast.Module) -> tuple[ast.Module, list[Diagnostic], frozenset[str]]:
     """Unroll every concept of a module; returns it, diagnostics, and names to stay quiet on."""
@@ -79,7 +93,7 @@ def _walk_members(members: Iterable[Any]) -> Iterator[Any]:
 
 def _exprs(m: Any) -> list[ast.Expr]:
     out: list[Any] = []
-    for f in ("value", "at", "cond", "pose", "width", "about", "axis", "origin", "direction"):
+    for f in EXPR_FIELDS:
         out.append(getattr(m, f, None))
     if isinstance(m, ast.Part):
         out += [a.value for a in m.args] + [m.selector]
@@ -271,7 +285,7 @@ class _Expander:
         if isinstance(m, ast.Part) and m.variants:
             return self._variant(m, name, env, cond)
         changes: dict[str, Any] = {"name": name, "index": ()}
-        for f in ("value", "at", "cond", "pose", "width", "about", "axis", "origin", "direction"):
+        for f in EXPR_FIELDS:
             if getattr(m, f, None) is not None:
                 changes[f] = self._x(getattr(m, f), env)
         if isinstance(m, ast.Part):

@@ -96,6 +96,12 @@ def casadi_functions(checked: Checked, name: str) -> Compiled:
             add(fn_key("grasp_width", gname), [("p", p)], [("width", g.width)])
         if g.axis is not None:
             add(fn_key("grasp_axis", gname), [("p", p), ("g", gv)], [("axis", _vec(g.axis))])
+        if g.when is not None:
+            add(
+                fn_key("grasp_when", gname),
+                [("p", p), ("q", q)],
+                [("r", _vec([g.when.residual])), ("holds", _vec([g.when.holds]))],
+            )
     _add_world_queries(low, p, q, add)
     holds = _vec([r.holds for r in low.requires])
     add("requires", [("p", p)], [("r", _vec([r.residual for r in low.requires])), ("holds", holds)])

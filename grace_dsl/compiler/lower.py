@@ -79,6 +79,18 @@ class GraspInfo:
     source: ast.Grasp
     mode: str = "pinch"
     axis: Any = None  # the symmetry axis in the grasp frame (3 backend values), or None
+    when: WhenInfo | None = None  # where the family applies (None: everywhere)
+
+
+@dataclass(frozen=True)
+class WhenInfo:
+    """A grasp's ``when`` condition over (p, q): compiled like a requirement's residual."""
+
+    residual: Any  # <= 0 where the family applies (how far from applying, for a search)
+    holds: Any  # 1 where the condition is true, else 0: the exact test, strict `<` included
+    condition: str  # as the formatter writes it, in the declaring concept's names
+    joints: tuple[str, ...]  # the qualified joints it reads
+    where: str  # ``file.eac:line`` of the condition
 
 
 @dataclass(frozen=True)
@@ -175,6 +187,7 @@ def symbol_names(param: ParamInfo) -> list[str]:
 class _Instance:
     def __init__(self, checked: Checked, backend: Backend, make_symbol: MakeSymbol, out: Lowered):
         self.checked, self.b, self.sym, self.out = checked, backend, make_symbol, out
+        self.joint_values: dict[str, Any] = {}  # qualified moving joint -> its q symbol
 
     def build(
         self,
@@ -372,6 +385,7 @@ class _Instance:
             return parent_pose
         qv = self.sym("q", name)
         self.out.q.append(qv)
+        self.joint_values[name] = qv
         assert j.axis is not None
         axis = _unit(self.b, ev(j.axis))
         origin = ev(j.origin) if j.origin is not None else (0, 0, 0)
@@ -457,8 +471,37 @@ class _Instance:
         axis = None
         if g.symmetric:
             axis = tuple(sub(g.about)) if g.about is not None else (0.0, 0.0, 1.0)
+        when = self._when(cc, g.when, prefix, ev) if g.when is not None else None
         self.out.grasps[name] = GraspInfo(
-            name, link, tuple(free), tuple(symbols), pose, width, g.doc, g, g.mode or "pinch", axis
+            name,
+            link,
+            tuple(free),
+            tuple(symbols),
+            pose,
+            width,
+            g.doc,
+            g,
+            g.mode or "pinch",
+            axis,
+            when,
+        )
+
+    def _when(self, cc: CheckedConcept, cond: ast.Expr, prefix: str, ev: Evaluator) -> WhenInfo:
+        """A ``when`` condition with the declaring concept's joints bound to their values (the
+        joints are emitted before the grasps, so a part's are known under its prefix)."""
+        joints = {
+            m.name: self.joint_values[prefix + m.name]
+            for m in _all(cc.decl)
+            if isinstance(m, ast.Joint) and prefix + m.name in self.joint_values
+        }
+        sub = ev.with_names(joints)
+        read = tuple(prefix + n.id for n in ast.names_in(cond) if n.id in joints)
+        return WhenInfo(
+            residual(self.b, sub, cond),
+            self.b.as_number(sub(cond)),
+            format_expr(cond),
+            tuple(dict.fromkeys(read)),
+            where(cond.span),
         )
 
     def _part(

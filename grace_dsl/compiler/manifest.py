@@ -147,6 +147,14 @@ def _tidy(e: Any, qs: list[Any]) -> Any:
     return sp.factor_terms(e)
 
 
+def _when_entry(g: GraspInfo) -> dict[str, Any] | None:
+    """Where a grasp family applies: its ``when`` condition as written, the qualified joints it
+    reads and its ``file:line`` (None: the family applies at every joint value)."""
+    if g.when is None:
+        return None
+    return {"condition": g.when.condition, "joints": list(g.when.joints), "where": g.when.where}
+
+
 def concept_entry(
     decl: ast.Concept,
     file: str,
@@ -195,6 +203,7 @@ def concept_entry(
                 "where": where(g.source.pose.span),
                 "width_where": where(g.source.width.span) if g.source.width is not None else "",
                 "formula": _formula(exact.grasps[g.name].pose),
+                "when": _when_entry(g),
             }
             for g in low.grasps.values()
         ],

@@ -26,11 +26,11 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
-from grace_dsl.compiler.expand import VARIANT_SEP, facts_of
+from grace_dsl.compiler.expand import EXPR_FIELDS, VARIANT_SEP, facts_of
 from grace_dsl.lang import ast
 from grace_dsl.lang.diagnostics import Diagnostic, error
 
-_EXPR_FIELDS = ("value", "at", "cond", "pose", "width", "about", "axis", "origin", "direction")
+_EXPR_FIELDS = EXPR_FIELDS
 
 Variants = dict[str, tuple[str, tuple[tuple[str, str], ...]]]  # part -> (choice, (option, alt))
 

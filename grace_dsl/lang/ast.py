@@ -252,7 +252,8 @@ class FreeParam:
 class Grasp:
     """A grasp family: a pose over free parameters, the gripper opening it needs, how the hand
     touches the part (``by pinch|hook|push|press``) and an optional symmetry axis about which
-    the pose may spin (``symmetric [about v]``; the axis is in the grasp frame)."""
+    the pose may spin (``symmetric [about v]``; the axis is in the grasp frame), and the
+    condition under which it applies (``when``: a hook behind a drawer's front needs it ajar)."""
 
     name: str
     free: tuple[FreeParam, ...]
@@ -266,6 +267,9 @@ class Grasp:
     about: Expr | None = None  # the symmetry axis; ``symmetric`` alone means the approach (0, 0, 1)
     mode_span: Span = _span()
     index: Indices = ()
+    # ``when COND``: the family applies only where COND holds (parameters, lets and the values
+    # of the concept's own moving joints); None: always
+    when: Expr | None = None
 
 
 @dataclass(frozen=True)

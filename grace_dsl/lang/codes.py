@@ -83,6 +83,7 @@ CODES: dict[str, str] = {
     "E235": "overflow or undefined value inside the ranges",
     "E236": "argument leaves its range inside the declared ranges",
     "E237": "bare number where an angle is expected",
+    "E238": "a grasp's `when` condition reads its own free parameter",
     # build and I/O
     "E301": "cache or output directory not writable",
     "E302": "cache directory not private",

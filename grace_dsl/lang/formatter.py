@@ -279,7 +279,8 @@ def _segments(d: Decl) -> tuple[list[Segment], bool]:
         mode: list[Segment] = [[f"by {d.mode}"]] if d.mode is not None else []
         about: list[Segment] = [["symmetric about ", d.about]] if d.about is not None else []
         symmetric = about or ([["symmetric"]] if d.symmetric else [])
-        return [_grasp_head(d), [d.pose], *width, *mode, *symmetric], False
+        when: list[Segment] = [["when ", d.when]] if d.when is not None else []
+        return [_grasp_head(d), [d.pose], *width, *mode, *symmetric, *when], False
     if isinstance(d, ast.Action):
         return _action_segments(d), False
     if isinstance(d, ast.Use):

@@ -496,6 +496,7 @@ class _Builder(Transformer):
         width = found["width"].value if "width" in found else None
         mode = found.get("by")
         symmetric = found.get("symmetric")
+        when = found.get("when")
         last = clauses[-1].span if clauses else self._end(pose)
         return ast.Grasp(
             name.value,
@@ -510,6 +511,7 @@ class _Builder(Transformer):
             symmetric.value if symmetric else None,
             _tok_span(self.path, mode.value) if mode else ast.NO_SPAN,
             self._ix(name),
+            when.value if when else None,
         )
 
     def _once(self, clauses: list[_Clause], owner: str) -> dict[str, _Clause]:
@@ -547,6 +549,9 @@ class _Builder(Transformer):
         word, *about = c
         span = self._span(word, about[-1]) if about else _tok_span(self.path, word)
         return _Clause("symmetric", about[0] if about else None, span)
+
+    def grasp_when(self, c: list[Any]) -> _Clause:
+        return _Clause("when", c[0], self._span(c[0], c[0]))
 
     def action_decl(self, c: list[Any]) -> ast.Action:
         docs, name, verb, rule, *rest = c

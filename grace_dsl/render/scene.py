@@ -244,6 +244,7 @@ def _forces(inst: Instance, notes: list[str]) -> list[Force]:
         if not here(action):
             continue
         using = [g for g in list(entry["using"]) or list(inst.concept.grasps) if here(g)]
+        using = [g for g in using if inst.grasp_applies(g)]  # a `when` that fails here
         if not using:
             notes.append(f"action {action} uses no grasp: no point to draw its force at")
         for grasp in using:

@@ -78,9 +78,10 @@ def default_instance(
 
 def _present(inst: Any, using: Any) -> list[str]:
     """The action's grasps this instance has (a variant's exist only where its option is
-    chosen; a repeated part's only where its copy is)."""
+    chosen; a repeated part's only where its copy is) and that apply at its joint values (a
+    grasp's ``when``)."""
     have = set(inst.grasp_names)
-    return [g for g in using if g in have]
+    return [g for g in using if g in have and inst.grasp_applies(g)]
 
 
 def _grasp_centre(inst: Any, action: str) -> FloatArray:

@@ -13,6 +13,7 @@ from grace_dsl.errors import GraceError
 __all__ = [
     "CompileError",
     "GraceError",
+    "GraspConditionError",
     "ParameterError",
     "RequirementError",
     "UnknownNameError",
@@ -36,6 +37,11 @@ class UnknownNameError(GraceError, KeyError):
 
 class ParameterError(GraceError, ValueError):
     """A parameter value of the wrong shape, not finite, or outside its range."""
+
+
+class GraspConditionError(ParameterError):
+    """A grasp family asked for where its ``when`` condition fails (a hook behind a drawer's
+    front while the drawer is shut): the message names the condition and the joint values."""
 
 
 class RequirementError(ParameterError):

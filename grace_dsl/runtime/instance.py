@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from grace_dsl.compiler.types import format_si
 from grace_dsl.runtime import masks
 from grace_dsl.runtime.concept import (
     check_domain,
@@ -25,7 +26,13 @@ from grace_dsl.runtime.concept import (
     check_requirements,
     suggest,
 )
-from grace_dsl.runtime.errors import EvaluationError, GraceError, ParameterError, UnknownNameError
+from grace_dsl.runtime.errors import (
+    EvaluationError,
+    GraceError,
+    GraspConditionError,
+    ParameterError,
+    UnknownNameError,
+)
 from grace_dsl.runtime.gripper import Gripper
 from grace_dsl.runtime.inputs import (
     MAX_GRASPS,
@@ -372,6 +379,9 @@ class Instance:
         spec = self._grasp_spec(name)
         ref = None if reference is None else as_rotation(reference)
         g = self._free_vector(spec, merge_names("free", free, values))
+        why = self.grasp_inapplicable(spec.name)
+        if why is not None:
+            raise GraspConditionError(why)
         pose = self.pose @ self.concept.function("grasp", spec.name)(self.p, self.q, g)
         if spec.symmetric:
             axis = np.asarray(self.concept.function("grasp_axis", spec.name)(self.p, g)).reshape(3)
@@ -380,9 +390,34 @@ class Instance:
             raise self._evaluation(f"the pose of grasp {spec.name}", spec.where)
         return pose
 
+    def grasp_applies(self, name: str) -> bool:
+        """Whether grasp family ``name`` applies at these parameters and joint values: its
+        ``when`` condition holds (a family without one always applies)."""
+        return self.grasp_inapplicable(name) is None
+
+    def grasp_inapplicable(self, name: str) -> str | None:
+        """Why grasp family ``name`` does not apply here (its ``when`` condition, where it is
+        written and the joint values it reads), or None when it applies."""
+        spec = self._grasp_spec(name)
+        if spec.when is None:
+            return None
+        _, holds = self.concept.function("grasp_when", spec.name)(self.p, self.q)
+        if float(np.asarray(holds).reshape(-1)[0]) > 0.5:
+            return None
+        joints = self.joints
+        values = ", ".join(
+            f"{j} = {format_si(joints[j], _dim(self.concept, j))}"
+            for j in spec.when_joints
+            if j in joints
+        )
+        at = f" ({spec.when_where})" if spec.when_where else ""
+        here = f"; here {values}" if values else " at these parameters"
+        return f"grasp {spec.name} applies only when {spec.when}{at}{here}"
+
     def grasps(self, name: str, /, n: int = 16, reference: Any = None) -> np.ndarray:
         """``n`` poses spread evenly over the free-parameter box (deterministic), (n, 4, 4);
-        symmetric grasps are spun to ``reference`` as in :meth:`grasp`."""
+        symmetric grasps are spun to ``reference`` as in :meth:`grasp`. They are the family's
+        geometry whether or not its ``when`` condition holds (:meth:`grasp_applies` says)."""
         if type(n) is not int or not 1 <= n <= MAX_GRASPS:
             n = as_count("n", n, 1, MAX_GRASPS)
         spec = self._grasp_spec(name)
@@ -750,3 +785,8 @@ def _geometry(call: Any) -> Any:
         raise
     except ValueError as exc:
         raise ParameterError(str(exc)) from exc
+
+
+def _dim(concept: Concept, joint: str) -> str:
+    """The unit kind of a joint's value: a length for a prismatic joint, else an angle."""
+    return "length" if concept.joints[joint]["kind"] == "prismatic" else "angle"

@@ -209,6 +209,9 @@ def _judge_in(ctx: _Context, name: str, samples: int) -> Option:
     inst, gripper = ctx.inst, ctx.gripper
     g = inst.concept.grasps[name]
     mode = g.mode
+    why = inst.grasp_inapplicable(name)
+    if why is not None:  # its `when` fails at the instance's joints: nothing else to judge
+        return Option(name, mode, False, 0.0, {}, inst.grasps(name, 1)[0], (why,), g.doc)
     hand = _hand_reasons(inst, name, mode, gripper)
     cands = _poses(inst, name, samples, ctx.reference)
     poses, free = cands.poses, cands.free

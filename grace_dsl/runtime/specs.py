@@ -71,6 +71,9 @@ class GraspSpec(_Entry):
     needs_close: bool  # the fingers must close on it (a pinch)
     where: str
     entry: Mapping[str, Any] = field(repr=False)
+    when: str | None = None  # the ``when`` condition as written (None: it always applies)
+    when_joints: tuple[str, ...] = ()  # the joints that condition reads
+    when_where: str = ""  # its ``file:line``
 
     @property
     def free_names(self) -> tuple[str, ...]:
@@ -80,6 +83,7 @@ class GraspSpec(_Entry):
     def of(e: Mapping[str, Any], concept: Mapping[str, Any]) -> GraspSpec:
         mode = e.get("mode") or "pinch"
         demands = e.get("demands") or {}
+        when = e.get("when") or {}
         return GraspSpec(
             e["name"],
             e["link"],
@@ -92,6 +96,9 @@ class GraspSpec(_Entry):
             mode == "pinch",
             where_of(e, concept, f"grasp {e['name']}"),
             e,
+            when.get("condition"),
+            tuple(when.get("joints", ())),
+            when.get("where", ""),
         )
 
 

@@ -8,7 +8,9 @@ instance at a random world pose, and at its joints closed (q = 0) and at random 
 for every grasp family (parts' grasps included) at several free-parameter values:
 
 ``near``         the origin lies within 5 mm of the part it grasps (signed distance of the shapes
-                 of the grasp's link, only the part's own shapes for a part's grasp);
+                 of the grasp's link, only the part's own shapes for a part's grasp); for a hook,
+                 the middle of the side its closed fingers rest on (origin + x * half the pads'
+                 thickness along x): its wall is on +x, and its fingertips hang free;
 ``between``      pinch: material lies between the pads, on the segment between their inner faces
                  through the origin;
 ``width``        pinch: 0 < width <= the gripper's opening (the declared width, else the width of
@@ -26,6 +28,14 @@ and for every action, for the grasps it uses (``using``, else the grasps on the 
 ``unit_force``   toward a fixed direction: the force is a unit vector;
 ``follow``       ``inst.follow`` keeps the grasp attached to its link: G_k = L(q_k) L(q_0)^-1 G_0
                  to 1e-6, with L the link pose computed independently.
+
+A grasp family with a ``when`` condition is checked (with the actions that use it) only at joint
+states where the condition holds: the closed joints and the random values when it holds there,
+else up to ``WHEN_TRIES`` more random joint states per draw until it does. A family whose
+condition held in no draw fails
+
+``applies``      the ``when`` held at none of the joint states tried (a condition that cannot hold
+                 in the ranges, or one much narrower than them).
 
 Before those, every draw must be computable, or it fails instead of crashing the run:
 
@@ -89,6 +99,7 @@ FREE_SAMPLES = 5  # free-parameter values per grasp family (spread over its box)
 FOLLOW_STEPS = 8
 MAX_ATTEMPTS = 50  # draws attempted per requested draw before giving up on a tight `require`
 ENDS = 10  # one continuous parameter value in ENDS sits on an end of its range
+WHEN_TRIES = 16  # joint states drawn per draw for a grasp whose `when` held at neither state
 
 CHECKS = (
     "shape",
@@ -101,6 +112,7 @@ CHECKS = (
     "power",
     "unit_force",
     "follow",
+    "applies",
 )
 
 
@@ -353,7 +365,7 @@ def verify_concept(
             )
     specs = scaled_specs(concept, scale)
     rng = np.random.default_rng(seed)
-    run = _Run(concept, gripper, rng, hand_limits=scale != 1.0)
+    run = _Run(concept, gripper, rng, scale != 1.0, np.random.default_rng([seed, 1]))
     accepted = attempts = 0
     cap = MAX_ATTEMPTS * draws
     while accepted < draws and attempts < cap:
@@ -370,12 +382,16 @@ def verify_concept(
             continue
         accepted += 1
         run.check_draw(inst)
+    run.never_applied()
     note = ""
     if accepted < draws:
         note = (
             f"only {accepted} of {attempts} draws satisfy the requirements "
             f"({accepted / attempts:.1%}); stopped after {cap} attempts"
         )
+    if run.never:
+        never = ", ".join(sorted(run.never))
+        note = "; ".join(x for x in (note, f"never applies at {scale:g}x: {never}") if x)
     if run.too_wide:
         wide = ", ".join(sorted(run.too_wide))
         note = "; ".join(
@@ -510,6 +526,7 @@ class _Run:
         gripper: Gripper,
         rng: np.random.Generator,
         hand_limits: bool = False,
+        when_rng: np.random.Generator | None = None,
     ):
         self.concept, self.gripper, self.rng = concept, gripper, rng
         # at a scale other than 1, a pinch wider than the hand opens is the hand's limit (it
@@ -520,21 +537,46 @@ class _Run:
         self._failures: list[Failure] = []
         self._worst: dict[tuple[str, str], tuple[float, Failure]] = {}
         self._closed = finger_points(gripper, 0.0)
+        self._side = gripper.finger_width / 2  # a hook's bearing side: the pads' +x faces
+        # families with a `when`: checked only where it holds; how many draws checked each
+        self.conditional = {n for n, g in concept.grasps.items() if g.when is not None}
+        self.applied = dict.fromkeys(self.conditional, 0)
+        self.present = dict.fromkeys(self.conditional, 0)  # draws that have the family at all
+        self.never: set[str] = set()  # at a scale: families whose `when` never held (noted)
+        # the joint values drawn for them come from their own stream, so that the draws of
+        # parameters and of the two joint states stay those of a concept without a `when`
+        self._when_rng = when_rng or np.random.default_rng(0)
 
     @property
     def failures(self) -> tuple[Failure, ...]:
         return tuple(self._failures)
 
     def check_draw(self, inst: Instance) -> None:
-        """Every check at the closed joints and at random joint values; per check and member,
-        the worst failing sample of the draw is kept. A draw whose shapes or formulas cannot be
-        evaluated fails ``shape`` or ``finite`` (with what broke) instead of raising."""
+        """Every check at the closed joints and at random joint values, then each grasp family
+        whose ``when`` held at neither at joint values drawn until it holds; per check and
+        member, the worst failing sample of the draw is kept. A draw whose shapes or formulas
+        cannot be evaluated fails ``shape`` or ``finite`` (with what broke) instead of
+        raising."""
         self._worst = {}
-        for moved in (False, True):
+        here = presence(inst.concept.entry, inst.params)
+        pending = {g for g in self.conditional if here(g)}
+        for g in pending:
+            self.present[g] += 1
+        states = [False, True, *([None] * WHEN_TRIES)]  # None: joints drawn for a `when`
+        for moved in states:
+            if moved is None and not pending:
+                break
             state = inst
             try:
+                if moved is None:
+                    state = self._random_joints(inst, self._when_rng)
+                    only = {g for g in pending if state.grasp_applies(g)}
+                    if not only:
+                        continue
+                    pending -= self._check_state(state, only)
+                    continue
                 state = self._random_joints(inst) if moved else inst
-                self._check_state(state)
+                pending -= self._check_state(state)
             except ShapeError as exc:
                 self._broken(state, "shape", f"{exc.shape} ({exc.where})", str(exc))
                 break
@@ -543,12 +585,42 @@ class _Run:
                 break
         self._failures += [f for _, f in self._worst.values()]
 
-    def _check_state(self, state: Instance) -> None:
+    def never_applied(self) -> None:
+        """An ``applies`` failure for each grasp family whose ``when`` held in none of the
+        draws that have it (at the closed joints, random ones, or ``WHEN_TRIES`` more drawn for
+        it); a repeated copy or variant option no draw has is not one."""
+        for g in sorted(self.conditional):
+            if not self.present[g]:
+                continue
+            self.evaluated["applies"] += 1
+            if self.applied[g]:
+                continue
+            if self.hand_limits:  # at a scale: a contact the hand needs may not exist there
+                self.never.add(g)
+                continue
+            draws = self.present[g]
+            spec = self.concept.grasps[g]
+            at = f" ({spec.when_where})" if spec.when_where else ""
+            message = (
+                f"grasp {g} applies only when {spec.when}{at}, which held in none of {draws} "
+                f"draws (closed, at random joint values and {WHEN_TRIES} more tries each)"
+            )
+            failure = Failure(self.concept.name, "applies", g, {}, 0.0, 0.0, "", message)
+            self._failures.append(failure)
+
+    def _check_state(self, state: Instance, only: set[str] | None = None) -> set[str]:
+        """The checks at one joint state (of the grasps in ``only``, when given, and the
+        actions that use them); returns the conditional families checked."""
         geo = _Geometry(state)
         self.evaluated["shape"] += 1
-        # the repeated copies and variant options this draw has
+        # the repeated copies and variant options this draw has, where their `when` holds
         here = presence(state.concept.entry, state.params)
-        samples = {g: self._grasp_samples(state, g) for g in self.concept.grasps if here(g)}
+        names = [g for g in self.concept.grasps if here(g) and (only is None or g in only)]
+        names = [g for g in names if g not in self.conditional or state.grasp_applies(g)]
+        checked = {g for g in names if g in self.conditional}
+        for g in checked:
+            self.applied[g] += 1
+        samples = {g: self._grasp_samples(state, g) for g in names}
         for ss in samples.values():
             if ss:
                 self._check_grasp(state, geo, ss)
@@ -558,6 +630,7 @@ class _Run:
             for g in _action_grasps(self.concept, entry):
                 for s in samples.get(g, ()):
                     self._check_action(state, action, entry, s)
+        return checked
 
     def _grasp_samples(self, state: Instance, grasp: str) -> list[_Sample]:
         """The grasp's finite samples; a grasp the runtime refuses as not finite fails
@@ -622,11 +695,12 @@ class _Run:
         self._record(inst, member, s, _Measure("finite", False, math.inf, 0.0, 0.0, "", message))
         return good if width is None or math.isfinite(width) else []
 
-    def _random_joints(self, inst: Instance) -> Instance:
+    def _random_joints(self, inst: Instance, rng: np.random.Generator | None = None) -> Instance:
+        rng = rng or self.rng
         joints = {}
         for name, (lo, hi) in inst.joint_limits().items():
             lo, hi = (-math.pi, math.pi) if not math.isfinite(hi - lo) else (lo, hi)
-            joints[name] = float(self.rng.uniform(lo, hi))
+            joints[name] = float(rng.uniform(lo, hi))
         return inst.with_joints(joints)  # the parameters were checked once, per draw
 
     def _samples(self, inst: Instance, grasp: str) -> list[_Sample]:
@@ -664,8 +738,12 @@ class _Run:
         mode = self.concept.grasps[grasp].get("mode", "pinch")
         held = geo.held_shapes(grasp)
         origins = np.array([s.pose[:3, 3] for s in samples])
+        what = "the origin is"
+        if mode == "hook":  # it rests its side on a wall on +x: measure from that side
+            origins = origins + np.array([s.pose[:3, 0] for s in samples]) * self._side
+            what = "the side the fingers rest on (+x) is"
         for s, d in zip(samples, geo.sdf(origins, held)):
-            message = f"the origin is {d * 1e3:.2f} mm from the part it grasps"
+            message = f"{what} {d * 1e3:.2f} mm from the part it grasps"
             self._record(inst, grasp, s, _at_most("near", float(d), NEAR, "mm", message))
         if mode == "pinch":
             if self.gripper.can_close:  # a hand that cannot close makes no pinch (rank says so)

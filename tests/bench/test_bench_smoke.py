@@ -27,6 +27,7 @@ def test_every_script_is_smoke_tested() -> None:
         "bench_grasp_ik.py",
         "bench_ik.py",
         "bench_learned.py",
+        "bench_new_options.py",
         "bench_perception.py",
         "bench_plan.py",
         "bench_rank_agreement.py",
