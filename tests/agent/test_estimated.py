@@ -85,7 +85,8 @@ OPEN = SubTask(
 
 def test_a_retry_looks_again_from_the_next_view(lib: eac.Library) -> None:
     """The first view is from behind (refused: the handle is not in view), so the first
-    attempt does not act; the retry re-estimates from the front and acts on that estimate."""
+    attempt does not act; the retry re-estimates from the front, fits both looks together
+    (nothing moved the microwave in between) and acts on that estimate."""
     estimator = Estimator(views=((180.0, 40.0), (10.0, 40.0)))
     executor = Executor(MICROWAVE, lib, params=estimator, max_attempts=2, seconds=2.0)
     step = executor.run(Plan("open the microwave", (), (OPEN,))).steps[0]
@@ -94,7 +95,9 @@ def test_a_retry_looks_again_from_the_next_view(lib: eac.Library) -> None:
     assert "handle" in first.detail
     assert second.estimate["view"][0] == 10.0 and second.estimate["confidence"] >= 0.5
     assert second.option  # it acted on the new estimate
-    assert [a["view"][0] for a in estimator.account] == [180.0, 10.0]
+    assert [a["view"][0] for a in estimator.account if "fused" not in a] == [180.0, 10.0]
+    assert [a.get("fused") for a in estimator.account] == [None, None, 2]  # both looks fitted
+    assert second.estimate.get("fused") == 2 or "refused" in estimator.account[-1]
 
 
 def test_grace_run_estimated_completes_a_step(
