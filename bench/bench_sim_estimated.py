@@ -180,8 +180,6 @@ def summarize(pairs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "looks": sum(looks),
                 # pairs acted on an estimate of several looks fitted together
                 "fused": sum(1 for p in ps if _fused(p["estimated"]["estimate"] or {})),
-                # pairs acted on an estimate whose handle no look showed, hidden by the estimate
-                "hidden_handle": sum(1 for p in ps if _hidden(p["estimated"]["estimate"] or {})),
                 "median_length_error_max_mm": _median(accepted, "length_error_max_mm"),
                 "median_pose_error_mm": _median(accepted, "pose_error_mm"),
                 "median_pose_error_deg": _median(accepted, "pose_error_deg"),
@@ -200,12 +198,6 @@ def _fused(estimate: dict[str, Any]) -> bool:
     """Whether the accepted estimate came from a fused fit of several looks."""
     looks = estimate.get("looks", [])
     return bool(looks) and "fused" in looks[-1] and "refused" not in looks[-1]
-
-
-def _hidden(estimate: dict[str, Any]) -> bool:
-    """Whether the accepted estimate's handle was in no look (the estimate itself hides it)."""
-    looks = estimate.get("looks", [])
-    return bool(looks) and bool(looks[-1].get("hidden_handle")) and not estimate.get("refused")
 
 
 def _median(items: list[dict[str, Any]], key: str) -> float | None:

@@ -40,7 +40,7 @@ from grace_dsl.perception.looks import Look
 from grace_dsl.perception.render import DepthRender
 from grace_dsl.perception.segment import GroundTruthSegmenter
 from grace_dsl.perception.types import Estimate, Intrinsics, Segmenter
-from grace_dsl.runtime.errors import GraceError, ParameterError
+from grace_dsl.runtime.errors import ParameterError
 from grace_dsl.sim.camera import Camera
 from grace_dsl.sim.scene import Frame, Scene
 
@@ -115,7 +115,6 @@ class Sight:
     held: int = -1  # pixels of the link the task moves (-1: not asked for)
     confidence: float = 1.0  # the fit's whose front this is (1.0: given, not fitted)
     fused: bool = False  # the front of a fit of several looks (a candidate, never a look)
-    camera: Camera | None = field(default=None, compare=False, repr=False)  # the look's
 
 
 @dataclass(frozen=True)
@@ -135,9 +134,6 @@ class Perceived:
     estimate: Estimate | None = field(default=None, compare=False, repr=False)
     part_points: int = -1  # the handle's pixels in view (-1: the concept has no handle)
     sight: Sight | None = field(default=None, compare=False, repr=False)
-    #: accepted with its handle in none of the looks, which the estimate itself hides from
-    #: every camera (``hidden_from``): an oven's open door over its handle
-    hidden: bool = False
 
     def instance(self, concept: Concept) -> Instance:
         """The agent's model of the object: the estimated instance at its world pose."""
@@ -154,7 +150,6 @@ class Perceived:
             "confidence": round(self.confidence, 3),
             "source": self.source,
             "seconds": round(self.seconds, 3),
-            **({"hidden_handle": True} if self.hidden else {}),
         }
 
 
@@ -495,7 +490,7 @@ def look(
     handle_at = _centroid(cloud, cloud.on(PART), shot.camera_pose) if seen > 0 else None
     world = Look(_to_world(cloud.points, shot.camera_pose), shot.camera_pose, cloud.labels)
     n_held = int(held.sum()) if hold else -1
-    sight = Sight(view, centre, handle_at, handle=seen, cloud=world, held=n_held, camera=camera)
+    sight = Sight(view, centre, handle_at, handle=seen, cloud=world, held=n_held)
     for name, n in ((PART, seen), (hold, int(held.sum()) if hold else -1)):
         if 0 <= n < MIN_PART_POINTS:  # the back or the side: what it would hold is not in view
             why = (
@@ -561,13 +556,12 @@ def fuse(
     views = " + ".join(_view(s.view) for s in sights)
     if len(clouds) < 2:
         raise EstimateRefused(f"{concept.name}: {len(clouds)} look(s) to fuse (2 needed)")
-    short, unseen = "", ""
+    short = ""
     for what, counts in (
         ("handle", [s.handle for s in sights]),
         ("moved link", [s.held for s in sights]),
     ):
         if min(counts) >= 0 and sum(counts) < MIN_PART_POINTS and not short:
-            unseen = what
             short = (
                 f"{concept.name} from views {views} fused: {sum(counts)} pixels of its {what} "
                 f"in view (at least {MIN_PART_POINTS} needed); take another view"
@@ -610,10 +604,6 @@ def fuse(
     got = _seen(got, replace(sights[-1], handle=handle, handle_at=None, fused=True))
     confident = got.confidence >= min_confidence
     cameras = [c.camera for c in clouds if isinstance(c.camera, np.ndarray)]
-    explained = short and unseen == "handle" and confident and front_in_view(got.pose, cameras)
-    if explained and hidden_from(concept, got, sights):  # the estimate says why none showed it
-        short = ""
-        got = replace(got, hidden=True)
     if short:
         raise EstimateRefused(short, got)
     if not confident:
@@ -629,30 +619,6 @@ def fuse(
             got,
         )
     return got
-
-
-def hidden_from(concept: Concept, got: Perceived, sights: Sequence[Sight]) -> bool:
-    """Whether the estimate itself shows fewer than ``MIN_PART_POINTS`` pixels of its handle
-    to every look's camera (rendered by MuJoCo as the looks were): then the handle missing
-    from every look is what the estimate predicts (an oven's door opened flat over its handle,
-    seen from the protocol's elevations), not a sign that the estimate is wrong. False when a
-    look's camera is unknown or the estimate cannot be built."""
-    if not sights or any(s.camera is None for s in sights):
-        return False
-    try:
-        scene, model, data = scene_of(got.instance(concept))
-    except (GraceError, ValueError):
-        return False
-    for s in sights:
-        assert s.camera is not None
-        frame, geoms = render_from(scene, model, data, s.camera)
-        shot = object_shot(frame, scene, model, 0, geoms)
-        if shot.shape_labels is None:
-            return False
-        on = [k for k, name in enumerate(shot.shapes) if _part_of(name) == PART]
-        if int(np.isin(shot.shape_labels, on).sum()) >= MIN_PART_POINTS:
-            return False
-    return True
 
 
 def scene_of(inst: Instance) -> tuple[Scene, mujoco.MjModel, mujoco.MjData]:
