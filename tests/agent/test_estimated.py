@@ -117,8 +117,11 @@ def test_grace_run_estimated_completes_a_step(
 
 
 def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The control: given the truth as its estimate, the estimated episode is the oracle's (the
-    same world, hand and path), so what estimated mode loses is perception's error alone."""
+    """The control: given the truth as its estimate, the estimated episode succeeds as the
+    oracle's (the same world, hand, grasp and path), so what estimated mode loses is
+    perception's error alone. Its open goes further: not knowing whether its travel is right,
+    the agent follows a drawer past the estimated range until it stops (``beyond``), where the
+    oracle stops at 90 % of the range it knows."""
     from grace_dsl.agent import estimated_episode as ee
     from grace_dsl.agent.estimated import Perceived
     from grace_dsl.sim.episode import run_episode
@@ -134,6 +137,6 @@ def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.Monke
     estimated = ee.run_estimated_episode(config, 3)
     oracle = run_episode(EpisodeConfig("CabinetDrawer", "open"), 3)
     assert estimated.strict == oracle.strict and estimated.option == oracle.option
-    assert abs(estimated.q_final - oracle.q_final) < 2e-3
+    assert estimated.q_final >= oracle.q_final - 2e-3  # on to the drawer's stop, not short
     assert estimated.estimate["pose_error_mm"] == 0.0
     assert estimated.estimate["length_error_max_mm"] == 0.0
