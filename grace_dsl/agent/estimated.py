@@ -62,7 +62,14 @@ PART = "handle"  # the part whose pixels a look counts (the part most grasps hol
 MIN_PART_POINTS = 16  # fewer handle pixels: the handle is not in view, the look is refused
 LOOKS = 3  # at most this many looks per episode: the protocol's and two the agent chooses
 SAME_VIEW = 20.0  # degrees: a view this near one already taken would show nothing new
-LOW_ELEVATION = 20.0  # degrees: where a look goes when no look has shown the handle from above
+#: degrees: the protocol's camera band (upper hemisphere); every look the agent chooses stays in it
+ELEVATIONS = (30.0, 60.0)
+LOW_ELEVATION = ELEVATIONS[0]  # where a look goes when no look has shown the handle from above
+#: degrees: the highest a chosen look goes (a front is a vertical face: from high above it is
+#: foreshortened, and the looks refused at confidence ~0 were mostly taken from 46-60 deg)
+HIGH_ELEVATION = 45.0
+#: a refused fit at least this confident says where the front is (below: its front is noise)
+FRONT_TRUST = 0.3
 
 
 class EstimateRefused(PerceptionError):
@@ -106,6 +113,8 @@ class Sight:
     # the look's labelled cloud in the world frame with its camera: what a fused fit takes
     cloud: Look | None = field(default=None, compare=False, repr=False)
     held: int = -1  # pixels of the link the task moves (-1: not asked for)
+    confidence: float = 1.0  # the fit's whose front this is (1.0: given, not fitted)
+    fused: bool = False  # the front of a fit of several looks (a candidate, never a look)
 
 
 @dataclass(frozen=True)
@@ -516,6 +525,11 @@ def _to_world(points: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
     return np.asarray(points, float) @ pose[:3, :3].T + pose[:3, 3]
 
 
+#: degrees past square a fused fit's front may face its nearest camera (several cameras round
+#: the object: a front seen edge-on from two sides was in view, a front turned away from all is not)
+GRAZING = 10.0
+
+
 def fuse(
     concept: Concept,
     sights: Sequence[Sight],
@@ -523,36 +537,55 @@ def fuse(
     seed: int = 0,
     min_confidence: float = MIN_CONFIDENCE,
     fixed: Mapping[str, Any] | None = None,
+    fit: Any = None,
 ) -> Perceived:
     """One estimate from every look taken (``eac.estimate(..., looks=)``: the clouds in the
     world frame, free space and outline per camera), started from the single looks' fits
-    (``guesses``, the most confident first). Refused (``EstimateRefused``) like one look: too
-    few of the handle's or the moved link's pixels in all the looks together, a confidence
-    below ``min_confidence``, or a front that faces none of the cameras."""
-    from grace_dsl.perception.estimate import estimate
+    (``guesses``, the most confident first). When that fit is not confident enough, the
+    looks are fitted again from each of the two most confident single fits alone
+    (``FUSE_RETRIES``): single fits that disagree can start the joint fit in neither basin,
+    and the run from one of them is screened by the fused cost like the first (the most
+    confident run is kept). Refused (``EstimateRefused``) like one look: too few of the
+    handle's or the moved link's pixels in all the looks together (the fit is still run then,
+    never acted on: its front says where to look next), a confidence below
+    ``min_confidence``, or a front that faces away from every camera (``front_in_view``).
+    ``fit(clouds, starts)``: the fit to run (default ``eac.estimate``)."""
     from grace_dsl.perception.views import join_params
 
     clouds = [s.cloud for s in sights if s.cloud is not None]
     views = " + ".join(_view(s.view) for s in sights)
     if len(clouds) < 2:
         raise EstimateRefused(f"{concept.name}: {len(clouds)} look(s) to fuse (2 needed)")
+    short = ""
     for what, counts in (
         ("handle", [s.handle for s in sights]),
         ("moved link", [s.held for s in sights]),
     ):
-        if min(counts) >= 0 and sum(counts) < MIN_PART_POINTS:
-            raise EstimateRefused(
+        if min(counts) >= 0 and sum(counts) < MIN_PART_POINTS and not short:
+            short = (
                 f"{concept.name} from views {views} fused: {sum(counts)} pixels of its {what} "
                 f"in view (at least {MIN_PART_POINTS} needed); take another view"
             )
     fixed = fixed_params(concept) if fixed is None else dict(fixed)
+    run = fit if fit is not None else _fused_fit(concept, fixed, seed)
     ranked = sorted((g for g in guesses if g.estimate is not None), key=lambda g: -g.confidence)
     starts = [replace(g.estimate, pose=g.pose) for g in ranked if g.estimate is not None]
-    try:
-        est = estimate(concept, looks=clouds, init=fixed, starts=starts, seed=seed)
-    except (PerceptionError, ParameterError) as exc:
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise EstimateRefused(f"{concept.name} from views {views} fused: {first}") from exc
+    tries = [starts, *([s] for s in starts[:FUSE_RETRIES] if len(starts) > 1)]
+    best: Estimate | None = None
+    failure = ""
+    for k, some in enumerate(tries):
+        if k > 0 and (short or (best is not None and best.confidence >= min_confidence)):
+            break  # confident (or only a guess for the next view): no retry
+        try:
+            est = run(clouds, some)
+        except (PerceptionError, ParameterError) as exc:
+            failure = failure or (str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            continue
+        if best is None or (est.confidence, -est.residual) > (best.confidence, -best.residual):
+            best = est
+    if best is None:
+        raise EstimateRefused(f"{concept.name} from views {views} fused: {failure}")
+    est = best
     got = Perceived(
         concept.name,
         join_params(concept, est.params, fixed),
@@ -567,26 +600,75 @@ def fuse(
         est,
         sum(max(s.handle, 0) for s in sights) if sights[0].handle >= 0 else -1,
     )
-    got = _seen(got, sights[-1])
-    if not got.confidence >= min_confidence:
+    handle = sum(max(s.handle, 0) for s in sights) if sights[0].handle >= 0 else -1
+    got = _seen(got, replace(sights[-1], handle=handle, handle_at=None, fused=True))
+    confident = got.confidence >= min_confidence
+    cameras = [c.camera for c in clouds if isinstance(c.camera, np.ndarray)]
+    if short:
+        raise EstimateRefused(short, got)
+    if not confident:
         raise EstimateRefused(
             f"{concept.name} from views {views} fused: confidence {got.confidence:.2f} is below "
             f"{min_confidence:.2f} (residual {1000 * got.residual:.1f} mm); take another view",
             got,
         )
-    z = got.pose[:3, 2]
-    facing = [
-        float(z @ (c.camera[:3, 3] - got.pose[:3, 3])) > 0.0
-        for c in clouds
-        if isinstance(c.camera, np.ndarray)
-    ]
-    if not any(facing):
+    if not front_in_view(got.pose, cameras):
         raise EstimateRefused(
-            f"{concept.name} from views {views} fused: the estimated front faces none of the "
-            "cameras; take another view",
+            f"{concept.name} from views {views} fused: the estimated front faces away from "
+            "every camera; take another view",
             got,
         )
     return got
+
+
+def scene_of(inst: Instance) -> tuple[Scene, mujoco.MjModel, mujoco.MjData]:
+    """``inst`` as a MuJoCo scene at its own pose, without the floor (an episode's world has
+    none and its object's centre is at the origin), its joints at their values."""
+    import mujoco
+
+    scene = Scene.from_instances([inst], up="keep")
+    spec = scene.spec()
+    spec.delete(spec.geom("floor"))
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    for exported, prefix in zip(scene.models, scene.prefixes, strict=True):
+        for j in exported.joints:
+            if j.kind != "fixed":
+                data.qpos[model.jnt_qposadr[model.joint(prefix + j.name).id]] = j.value
+    mujoco.mj_forward(model, data)
+    return scene, model, data
+
+
+#: single fits a refused fused fit is run again from, one at a time (the most confident first)
+FUSE_RETRIES = 2
+
+
+def _fused_fit(concept: Concept, fixed: Mapping[str, Any], seed: int) -> Any:
+    """``eac.estimate`` of the looks from the given starts (world-frame single fits)."""
+    from grace_dsl.perception.estimate import estimate
+
+    def run(clouds: Sequence[Look], starts: Sequence[Estimate]) -> Estimate:
+        return estimate(concept, looks=list(clouds), init=dict(fixed), starts=starts, seed=seed)
+
+    return run
+
+
+def front_in_view(
+    pose: np.ndarray, cameras: Sequence[np.ndarray], grazing: float = GRAZING
+) -> bool:
+    """Whether the estimated front (the concept's +z at ``pose``) was in view of one of
+    ``cameras`` (4x4 world poses): for one camera it must face it; for several (the looks
+    round the object, fused) it may be up to ``grazing`` degrees past square to the nearest
+    (two side views each see a front edge-on: a laptop's, seen from azimuths 96 and 276, was
+    refused at confidence 0.96 although every look had shown it)."""
+    z = np.asarray(pose, float)[:3, 2]
+    origin = np.asarray(pose, float)[:3, 3]
+    limit = 0.0 if len(cameras) <= 1 else -math.sin(math.radians(grazing))
+    for cam in cameras:
+        d = np.asarray(cam, float)[:3, 3] - origin
+        if float(z @ d) / max(float(np.linalg.norm(d)), 1e-9) > limit:
+            return True
+    return False
 
 
 #: radians: the grid a frameless leaf's joint is chosen on (``frameless_joint``)
@@ -631,9 +713,10 @@ def frameless_joint(
 
 
 def _seen(got: Perceived, sight: Sight) -> Perceived:
-    """``got`` with its sight, the estimated front included."""
+    """``got`` with its sight, the estimated front and the fit's confidence included."""
     z = got.pose[:3, 2]
-    return replace(got, sight=replace(sight, front=(float(z[0]), float(z[1]), float(z[2]))))
+    front = (float(z[0]), float(z[1]), float(z[2]))
+    return replace(got, sight=replace(sight, front=front, confidence=float(got.confidence)))
 
 
 def _centroid(
@@ -646,30 +729,45 @@ def _centroid(
     return (float(c[0]), float(c[1]), float(c[2]))
 
 
-def next_view(first: View, sights: Sequence[Sight]) -> View:
+def next_view(first: View, sights: Sequence[Sight], hint: Sight | None = None) -> View:
     """Where to look after the refused ``sights`` (a robot walking round the object). The
-    candidate directions, newest sight first: toward the face where the handle's pixels were
-    seen (the horizontal direction from the aimed-at centre to their centroid: a handle sits on
-    the front), toward the face the estimated front points at (``_front``: turned round when
-    it faced a camera that saw none of the handle); then, while no handle was seen,
-    from the opposite side of the last view (from behind nothing of the front shows). The
-    first candidate at least
-    ``SAME_VIEW`` degrees from every view taken wins (a flipped estimate's front points back
-    at the camera); if none is, the first is turned by 45, then 90 degrees either way. The
-    elevation is the first look's, or ``LOW_ELEVATION`` while no look has shown any of a
-    handle (an oven's open door hides its handle from above). A function of the sights."""
+    candidate directions: the front of ``hint`` (a refused fit of all the looks together)
+    when it is at least ``MIN_CONFIDENCE`` sure (refused for the side it showed, not for its
+    fit); toward the face where the handle's pixels were seen, newest sight first (the
+    horizontal direction from the aimed-at centre to their centroid: a handle sits on the
+    front); toward the face the estimated fronts point at, the most confident fit first and
+    only fits at least ``FRONT_TRUST`` sure (a fit at confidence ~0 points anywhere;
+    ``_front``: turned round when it faced a camera that saw none of the handle); then, while
+    no handle was seen, from the opposite side of the last view (from behind nothing of the
+    front shows). The first candidate at least ``SAME_VIEW`` degrees from every view taken
+    wins; if none is, the first is turned by 45, then 90 degrees either way.
+
+    The elevation stays in the protocol's band (``ELEVATIONS``): ``LOW_ELEVATION`` while no
+    look has shown any of a handle (an oven's open door hides its handle from above), else the
+    first look's, at most ``HIGH_ELEVATION`` (a front seen from high above is foreshortened).
+    A function of the sights: the same sights give the same view."""
     taken = [s.view.azimuth for s in sights]
     hidden = bool(sights) and all(s.handle == 0 for s in sights)
-    elevation = min(first.elevation, LOW_ELEVATION) if hidden else first.elevation
+    low, high = ELEVATIONS
+    elevation = LOW_ELEVATION if hidden else min(max(first.elevation, low), HIGH_ELEVATION, high)
+    trusted = hint is not None and hint.front is not None and hint.confidence >= MIN_CONFIDENCE
     candidates: list[float] = []
+    ahead = _azimuth(hint.front) if trusted and hint is not None and hint.front else None
+    if ahead is not None:
+        candidates.append(ahead)
     for s in reversed(sights):
-        for c in (_toward(s.centre, s.handle_at), _front(s)):
-            if c is not None:
-                candidates.append(c)
+        toward = _toward(s.centre, s.handle_at)
+        if toward is not None:
+            candidates.append(toward)
+    fitted = [s for s in reversed(sights) if s.front is not None and s.confidence >= FRONT_TRUST]
+    for s in sorted(fitted, key=lambda s: -s.confidence):  # stable: newest first among ties
+        front = _front(s)
+        if front is not None:
+            candidates.append(front)
     if taken and not any(s.handle_at is not None for s in sights):
         candidates.append((taken[-1] + 180.0) % 360.0)
     if not candidates:
-        return first
+        return View(first.azimuth, min(max(first.elevation, low), high))
     for c in candidates:
         if all(_apart(c, t) >= SAME_VIEW for t in taken):
             return View(round(c, 6), elevation)
@@ -732,8 +830,11 @@ def look_around(
     account: list[dict[str, Any]] = []
     sights: list[Sight] = []
     guesses: list[Perceived] = []
+    hint: Sight | None = None  # the last refused fused fit's sight: where its front points
     for k in range(limit):
-        view = fixed[k] if fixed is not None else first if k == 0 else next_view(first, sights)
+        view = (
+            fixed[k] if fixed is not None else first if k == 0 else next_view(first, sights, hint)
+        )
         alone: Perceived | None = None
         try:
             alone = see(view)
@@ -755,6 +856,8 @@ def look_around(
             except EstimateRefused as exc:
                 entry = exc.perceived.summary() if exc.perceived is not None else {}
                 account.append({**entry, "fused": len(sights), "refused": str(exc)})
+                if exc.perceived is not None and exc.perceived.sight is not None:
+                    hint = replace(exc.perceived.sight, fused=True)
             else:
                 account.append({**together.summary(), "fused": len(sights)})
                 return together, account
@@ -807,7 +910,14 @@ class Estimator:
     The views cycle: a retry after a failed attempt looks from the next one (a re-estimate from
     a new view, bounded by the executor's attempts). The camera is aimed at the object's
     position from the scene file (where the agent was told the object is), framed by the object's
-    size; only the pixels go into the estimate."""
+    size; only the pixels go into the estimate.
+
+    Looks are fused (``fuse``, as the benchmark's estimated mode): the looks at an object since
+    its last accepted estimate were refused, so nothing acted on it and it stands as they saw
+    it; from the second such look on, all of them are fitted at once, and that estimate is
+    taken when accepted (else the new look's own when accepted). An accepted estimate starts
+    the object's looks afresh (the agent may now move it). ``fuse_looks=False``: each look
+    alone."""
 
     def __init__(
         self,
@@ -815,6 +925,7 @@ class Estimator:
         min_confidence: float = MIN_CONFIDENCE,
         seed: int = 0,
         segmenter: Segmenter | None = None,
+        fuse_looks: bool = True,
     ):
         if not views:
             raise PerceptionError("an Estimator needs at least one view (azimuth, elevation)")
@@ -822,10 +933,13 @@ class Estimator:
         self.min_confidence = min_confidence
         self.seed = seed
         self.segmenter = segmenter
+        self.fuse_looks = fuse_looks
         self.looks: dict[str, int] = {}
         self.last: dict[str, Perceived] = {}
-        self.account: list[dict[str, Any]] = []  # every look, in order
+        self.account: list[dict[str, Any]] = []  # every look (and fused fit), in order
         self._last_look: dict[str, dict[str, Any]] = {}
+        # per object, the looks since its last accepted estimate: (what it saw, its fit or None)
+        self._pending: dict[str, list[tuple[Sight, Perceived | None]]] = {}
 
     def next_view(self, obj: SceneObject) -> View:
         """The object's next view, relative to the way its front faces (its scene yaw)."""
@@ -835,23 +949,59 @@ class Estimator:
         return View((base.azimuth + math.degrees(obj.yaw)) % 360.0, base.elevation)
 
     def perceive(self, obj: SceneObject, world: MultiWorld, concept: Concept) -> Perceived:
-        """One look at ``obj`` in ``world`` (raises ``EstimateRefused``)."""
+        """One look at ``obj`` in ``world``, fused with the refused looks before it (raises
+        ``EstimateRefused`` when neither is accepted)."""
         index = world.names.index(obj.name)
         centre, radius = frame_of(world.scene.instances[index])  # where the scene says it is
         view = self.next_view(obj)
         seed = self.seed + 7919 * self.looks[obj.name]
+        fixed = fixed_params(concept, obj.params)
+        pending = self._pending.setdefault(obj.name, [])
         try:
             got = look(world.scene, world.world.model, world.world.data, index, concept, view,
                        centre, radius, seed, self.segmenter, self.min_confidence,
-                       fixed_params(concept, obj.params))  # fmt: skip
+                       fixed)  # fmt: skip
         except EstimateRefused as exc:
             entry = exc.perceived.summary() if exc.perceived is not None else {"view": _pair(view)}
             self.account.append({"object": obj.name, **entry, "refused": str(exc)})
             self._last_look[obj.name] = self.account[-1]
-            raise
+            if exc.sight is not None:
+                pending.append((exc.sight, exc.perceived))
+            together = self._fused(obj.name, concept, fixed)
+            if together is None:
+                raise
+            return together
         self.account.append({"object": obj.name, **got.summary()})
         self._last_look[obj.name] = self.account[-1]
+        if pending and got.sight is not None:
+            pending.append((got.sight, got))
+            together = self._fused(obj.name, concept, fixed)
+            if together is not None:
+                return together
+        self._pending[obj.name] = []
         self.last[obj.name] = got
+        return got
+
+    def _fused(self, name: str, concept: Concept, fixed: Mapping[str, Any]) -> Perceived | None:
+        """The object's pending looks fitted together (``fuse``), accepted, or None (fewer
+        than two looks, fusing off, or the fused estimate refused: recorded either way)."""
+        pending = self._pending.get(name, [])
+        if not self.fuse_looks or len(pending) < 2:
+            return None
+        sights = [s for s, _ in pending]
+        guesses = [g for _, g in pending if g is not None]
+        try:
+            got = fuse(concept, sights, guesses, self.seed, self.min_confidence, fixed)
+        except EstimateRefused as exc:
+            entry = exc.perceived.summary() if exc.perceived is not None else {}
+            self.account.append(
+                {"object": name, **entry, "fused": len(sights), "refused": str(exc)}
+            )
+            return None
+        self.account.append({"object": name, **got.summary(), "fused": len(sights)})
+        self._last_look[name] = self.account[-1]
+        self._pending[name] = []
+        self.last[name] = got
         return got
 
     def last_look(self, name: str) -> dict[str, Any]:

@@ -52,6 +52,7 @@ from grace_dsl.agent.estimated import (
     fuse,
     look,
     look_around,
+    scene_of,
     with_joints_clipped,
 )
 from grace_dsl.runtime.errors import GraceError, ParameterError
@@ -122,9 +123,30 @@ def estimated_episode(
     parked = np.eye(4)
     parked[:3, 3] = PARKED
     world = World.build(true, gripper, parked, driven=task.joint)
-    outcome = execute(believed, task, usable[0], gripper, config.max_seconds, world=world)
+    outcome = execute(believed, task, usable[0], gripper, config.max_seconds, world=world,
+                      relative=True, beyond=beyond(believed, task.joint, task.sign))  # fmt: skip
     record = outcome_record(config, seed, task, draw, true, outcome, usable[0], started)
     return replace(record, estimate={"looks": account, "refused": False, **errors})
+
+
+#: m: how far a drawer's path goes on past its estimated travel while the drawer still moves
+PRISMATIC_BEYOND = 0.3
+#: of the estimated range: how far a close goes on past the estimated stop while the joint moves
+CLOSE_BEYOND = 0.25
+
+
+def beyond(believed: Instance, joint: str, sign: float) -> float:
+    """How far (joint units) the hand's path goes on past the estimate's goal while the
+    measured joint still moves (``sim.episode.execute``'s ``beyond``). A closed drawer's
+    travel is in no view (the fit's value is the prior's), so an open follows a drawer until it
+    stops, at least ``PRISMATIC_BEYOND`` past the estimated travel; a close follows any joint on
+    past the estimated stop (an estimate a few centimetres off stops the hand short of the real
+    one). A door's opening range is the concept's, not an estimate: an open ends where it did."""
+    lo, hi = believed.joint_limits()[joint]
+    prismatic = believed.concept.joints[joint]["kind"] == "prismatic"
+    if sign < 0:
+        return max(CLOSE_BEYOND * (hi - lo), PRISMATIC_BEYOND if prismatic else 0.0)
+    return max(hi - lo, PRISMATIC_BEYOND) if prismatic else 0.0
 
 
 def perceive_episode(
@@ -196,19 +218,7 @@ def _believed(got: Perceived, concept: Any, ranges: str) -> Instance | str:
 def _scene(true: Instance) -> tuple[Scene, Any, Any]:
     """The true instance as a MuJoCo scene at its episode pose, without the floor (the
     episode's world has none and the object's centre is at the origin)."""
-    import mujoco
-
-    scene = Scene.from_instances([true], up="keep")
-    spec = scene.spec()
-    spec.delete(spec.geom("floor"))
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    for exported, prefix in zip(scene.models, scene.prefixes, strict=True):
-        for j in exported.joints:
-            if j.kind != "fixed":
-                data.qpos[model.jnt_qposadr[model.joint(prefix + j.name).id]] = j.value
-    mujoco.mj_forward(model, data)
-    return scene, model, data
+    return scene_of(true)
 
 
 def _refused(account: list[dict[str, Any]]) -> str:

@@ -63,6 +63,8 @@ PATH_CHECKS = 6  # joint values checked along the path with the closed pinch
 STILL_TIME = 2.0  # s a part sent to an explicit goal may take to come to rest in the hand
 STILL_SPEED = 0.005  # m/s or rad/s: at rest
 GOAL_TOLERANCE = 0.01  # fraction of the range short of an explicit goal that counts as there
+STALL_TIME = 0.5  # s: past the model's goal, a joint that moves less than STALL_MOVE in this
+STALL_MOVE = 0.002  # m or rad: ... has stopped (its real stop, or the hand's force limit)
 
 
 def run_episode(config: EpisodeConfig, seed: int) -> EpisodeRecord:
@@ -191,6 +193,8 @@ def execute(
     goal: float | None = None,
     world: HandWorld | None = None,
     engine: str = "mujoco",
+    relative: bool = False,
+    beyond: float = 0.0,
 ) -> Outcome:
     """Approach, close (pinch), follow, let go and back off; ``budget`` simulated seconds.
 
@@ -198,7 +202,16 @@ def execute(
     for an open, pressed past the stop for a close). ``world``: act in this world (several
     objects, joint states kept between calls: ``grace_dsl.sim.multi``) with the hand placed at
     the pre-grasp, instead of a new world of ``inst`` alone; ``budget`` counts from the call.
-    ``engine``: the physics of a new world (``grace_dsl.sim.engines``)."""
+    ``engine``: the physics of a new world (``grace_dsl.sim.engines``).
+
+    For a model that is an estimate (the agent's, not the simulator's): ``relative`` reads
+    the measured joint as its motion since the follow began, added to the model's joint value
+    (the model's zero is the estimate's, the encoder's the world's: only the motion is shared;
+    otherwise a joint estimated 45 mm off starts the path 45 mm off the grasp), and ``beyond``
+    (joint units, > 0) lets the path go on that far past the model's goal while the measured
+    joint still moves (a closed drawer's travel is not in any view: the path must not end where
+    the estimated travel does); it ends when the joint stops (``STALL_TIME``). Both default
+    off: the oracle's execution is unchanged."""
     grasp = option.hand_pose if option.hand_pose is not None else option.pose
     assert grasp is not None
     pinch = option.mode == "pinch"
@@ -240,16 +253,25 @@ def execute(
         past = follower.lookahead(lo) * PRESS_MIN / follower.lead
         follower = replace(follower, goal=min(goal, lo - past))
     done_at = goal - task.sign * GOAL_TOLERANCE * (hi - lo) if aimed else None
-    slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at)
+    offset = float(inst.joints[task.joint]) - world.q(task.joint) if relative else 0.0
+    stalled_from = None
+    if beyond > 0.0:  # on past the model's goal while the joint moves
+        stalled_from = done_at if done_at is not None else _done_at(task, lo, hi)
+        follower = replace(follower, goal=follower.goal + task.sign * beyond)
+        done_at = follower.goal
+    slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at,
+                      offset, stalled_from)  # fmt: skip
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     # a part sent to an explicit goal is held there until it stops (let go where the hand is, it
     # springs back and coasts away); a closed part is held pressed against its stop while the
     # hand lets go: the hand as at the stop, pushed on to where the path goes past it (not turned
     # past it too: a short lever pinched and twisted beyond its stop sprang back up 0.03 rad)
-    reached = done_at is not None and (world.q(task.joint) - done_at) * task.sign >= 0
+    reached = done_at is not None and (world.q(task.joint) + offset - done_at) * task.sign >= 0
     hold = None
-    if reached and not slipped:
+    if stalled_from is not None and not slipped:  # held where the joint stopped, a lead on
+        hold = follower.target(world.q(task.joint) + offset)
+    elif reached and not slipped:
         hold = follower.pose_at(goal)
         _still(world, task.joint, hold)
     elif task.sign < 0 and not slipped:
@@ -331,22 +353,30 @@ def _follow(
     hi: float,
     seconds: float,
     done_at: float | None = None,
+    offset: float = 0.0,
+    stall_past: float | None = None,
 ) -> bool:
     """Drive along the path until the joint reaches ``done_at`` (default: near the task's
-    goal); True if the hand slipped off."""
-    span = hi - lo
+    goal); True if the hand slipped off. The path's joint value is the measured one plus
+    ``offset``; past ``stall_past`` (if given) the drive also ends when the joint stops."""
     if done_at is None:
-        done_at = lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
+        done_at = _done_at(task, lo, hi)
     end = world.time + max(seconds, 0.0)
     off_since: float | None = None
-    q_ref = world.q(task.joint)
+    q_ref = world.q(task.joint) + offset
     target = follower.pose_at(q_ref)
     tick = CONTROL_EVERY * world.timestep
     steps = 0
+    since: tuple[float, float] | None = None  # (time, q) the stall is measured from
     while world.time < end:
-        q = world.q(task.joint)
+        q = world.q(task.joint) + offset
         if (q - done_at) * task.sign >= 0:
             return False
+        if stall_past is not None and (q - stall_past) * task.sign >= 0:
+            if since is None or abs(q - since[1]) >= STALL_MOVE:
+                since = (world.time, q)
+            elif world.time - since[0] >= STALL_TIME:
+                return False
         if steps % CONTROL_EVERY == 0:
             q_ref = follower.advance(q, q_ref, tick)
             target = follower.pose_at(q_ref)
@@ -362,6 +392,13 @@ def _follow(
         if steps % CONTROL_EVERY == 0 and world.unstable():
             return False
     return False
+
+
+def _done_at(task: TaskAction, lo: float, hi: float) -> float:
+    """Where a follow to the task's default goal ends: near ``FOLLOW_TO`` of the range for an
+    open, a fifth of the strict close's margin above the stop for a close."""
+    span = hi - lo
+    return lo + (FOLLOW_TO - 0.05) * span if task.sign > 0 else lo + CLOSE_GOAL / 5 * span
 
 
 def _finish(

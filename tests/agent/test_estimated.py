@@ -85,7 +85,8 @@ OPEN = SubTask(
 
 def test_a_retry_looks_again_from_the_next_view(lib: eac.Library) -> None:
     """The first view is from behind (refused: the handle is not in view), so the first
-    attempt does not act; the retry re-estimates from the front and acts on that estimate."""
+    attempt does not act; the retry re-estimates from the front, fits both looks together
+    (nothing moved the microwave in between) and acts on that estimate."""
     estimator = Estimator(views=((180.0, 40.0), (10.0, 40.0)))
     executor = Executor(MICROWAVE, lib, params=estimator, max_attempts=2, seconds=2.0)
     step = executor.run(Plan("open the microwave", (), (OPEN,))).steps[0]
@@ -94,7 +95,9 @@ def test_a_retry_looks_again_from_the_next_view(lib: eac.Library) -> None:
     assert "handle" in first.detail
     assert second.estimate["view"][0] == 10.0 and second.estimate["confidence"] >= 0.5
     assert second.option  # it acted on the new estimate
-    assert [a["view"][0] for a in estimator.account] == [180.0, 10.0]
+    assert [a["view"][0] for a in estimator.account if "fused" not in a] == [180.0, 10.0]
+    assert [a.get("fused") for a in estimator.account] == [None, None, 2]  # both looks fitted
+    assert second.estimate.get("fused") == 2 or "refused" in estimator.account[-1]
 
 
 def test_grace_run_estimated_completes_a_step(
@@ -114,8 +117,11 @@ def test_grace_run_estimated_completes_a_step(
 
 
 def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The control: given the truth as its estimate, the estimated episode is the oracle's (the
-    same world, hand and path), so what estimated mode loses is perception's error alone."""
+    """The control: given the truth as its estimate, the estimated episode succeeds as the
+    oracle's (the same world, hand, grasp and path), so what estimated mode loses is
+    perception's error alone. Its open goes further: not knowing whether its travel is right,
+    the agent follows a drawer past the estimated range until it stops (``beyond``), where the
+    oracle stops at 90 % of the range it knows."""
     from grace_dsl.agent import estimated_episode as ee
     from grace_dsl.agent.estimated import Perceived
     from grace_dsl.sim.episode import run_episode
@@ -131,6 +137,6 @@ def test_a_true_estimate_reproduces_the_oracle_episode(monkeypatch: pytest.Monke
     estimated = ee.run_estimated_episode(config, 3)
     oracle = run_episode(EpisodeConfig("CabinetDrawer", "open"), 3)
     assert estimated.strict == oracle.strict and estimated.option == oracle.option
-    assert abs(estimated.q_final - oracle.q_final) < 2e-3
+    assert estimated.q_final >= oracle.q_final - 2e-3  # on to the drawer's stop, not short
     assert estimated.estimate["pose_error_mm"] == 0.0
     assert estimated.estimate["length_error_max_mm"] == 0.0
