@@ -97,6 +97,7 @@ _OPT_FLAGS = (
 FLAG_TIERS: tuple[tuple[str, ...], ...] = (("-march=native", *_OPT_FLAGS), _OPT_FLAGS)
 _LINK_FLAGS = ("-shared", "-fPIC", "-pthread")
 _COMPILE_TIMEOUT_S = 600.0
+_NONE: frozenset[int] = frozenset()  # no uniform inputs (``fast_functions``)
 
 
 class NativeUnsupportedError(GraceError, ValueError):
@@ -427,7 +428,9 @@ def _render_one(kernel: _Kernel, symbol: str) -> list[str]:
     return [*lines, "}"]
 
 
-def _render_batch(kernel: _Kernel, symbol: str) -> list[str]:
+def _render_batch(kernel: _Kernel, symbol: str, uniform: frozenset[int] = frozenset()) -> list[str]:
+    """The batch loop; inputs in ``uniform`` are one value for every sample (``in[k]`` holds
+    one sample's elements), loaded once before the loop instead of per sample."""
     ins = range(len(kernel.layout.inputs))
     outs = range(len(kernel.layout.outputs))
     lines = [
@@ -435,10 +438,15 @@ def _render_batch(kernel: _Kernel, symbol: str) -> list[str]:
         "double* const* out) {",
         *(f"  const double* restrict a{k} = in[{k}];" for k in ins),
         *(f"  double* restrict r{k} = out[{k}];" for k in outs),
+        *(f"  const double {v} = a{k}[{j}];" for v, k, j in kernel.loads if k in uniform),
         "  (void)n;",
         "  GRACE_IVDEP",
         "  for (long i = i0; i < i1; ++i) {",
-        *(f"    const double {v} = a{k}[{j}L * n + i];" for v, k, j in kernel.loads),
+        *(
+            f"    const double {v} = a{k}[{j}L * n + i];"
+            for v, k, j in kernel.loads
+            if k not in uniform
+        ),
         *_declarations(kernel, "    "),
         *(f"    {s}" for s in kernel.body),
         *(f"    r{o}[{j}L * n + i] = {v};" for o, j, v in kernel.stores),
@@ -466,12 +474,15 @@ class _Generated:
     digest: str
 
 
-def _function_c(fn: casadi.Function, symbol: str) -> _Generated:
+def _function_c(
+    fn: casadi.Function, symbol: str, uniform: frozenset[int] = frozenset()
+) -> _Generated:
     """C for one function; it exports ``<symbol>_digest`` (of prelude, ABI version and body)
-    so a stale library is detected at load time."""
+    so a stale library is detected at load time. ``uniform``: see :func:`fast_functions`."""
     _check_symbol(symbol)
     kernel = _lower(fn)
-    code = "\n".join([*_render_one(kernel, symbol), *_render_batch(kernel, symbol)]) + "\n"
+    batch = _render_batch(kernel, symbol, uniform)
+    code = "\n".join([*_render_one(kernel, symbol), *batch]) + "\n"
     digest = hashlib.sha256(f"{ABI_VERSION}\0{_PRELUDE}\0{code}".encode()).hexdigest()
     code += f'const char {symbol}_digest[] = "{digest}";\n'
     return _Generated(symbol, code, digest)
@@ -724,12 +735,15 @@ def _build_cached(
     return built
 
 
-def _generate_all(functions: Mapping[str, casadi.Function]) -> dict[str, _Generated]:
+def _generate_all(
+    functions: Mapping[str, casadi.Function], uniform: Mapping[str, frozenset[int]] | None = None
+) -> dict[str, _Generated]:
     """C for every function that can be lowered; the others are logged and left to CasADi."""
     generated: dict[str, _Generated] = {}
     for name, fn in functions.items():
         try:
-            generated[name] = _function_c(fn, symbol_for(name))
+            once = (uniform or {}).get(name, _NONE)
+            generated[name] = _function_c(fn, symbol_for(name), once)
         except NativeUnsupportedError as err:
             logger.info("%s stays on CasADi's VM: %s", name, err)
     return generated
@@ -824,10 +838,16 @@ class NativeFunction:
     backend = "native"
 
     def __init__(
-        self, fn: casadi.Function, libs: tuple[ctypes.CDLL, ctypes.CDLL], symbol: str
+        self,
+        fn: casadi.Function,
+        libs: tuple[ctypes.CDLL, ctypes.CDLL],
+        symbol: str,
+        uniform: frozenset[int] = frozenset(),
     ) -> None:
-        """``libs``: the library loaded as ``PyDLL`` (GIL held) and as ``CDLL`` (GIL released)."""
+        """``libs``: the library loaded as ``PyDLL`` (GIL held) and as ``CDLL`` (GIL released);
+        ``uniform``: the inputs its batch kernel reads once for every sample."""
         self.name = fn.name()
+        self._uniform = uniform
         self._layout = _Layout.of(fn)
         self._one = getattr(libs[0], f"{symbol}_one")
         self._one.argtypes = (ctypes.c_void_p, ctypes.c_void_p)
@@ -892,15 +912,19 @@ class NativeFunction:
         Small batches of float64 arrays reuse this thread's buffers and return C-contiguous
         copies (see :meth:`_small_batch`).
         """
-        if threads is None or threads == 1:
+        if (threads is None or threads == 1) and not self._uniform:
             out = self._small_batch(args)
             if out is not None:
                 return out
         n, split = self._layout.split_batch(args)
-        blocks = [
-            _soa_block(arg, arr, batched, n)
-            for arg, (arr, batched) in zip(self._layout.inputs, split, strict=True)
-        ]
+        blocks = []
+        for k, (arg, (arr, batched)) in enumerate(zip(self._layout.inputs, split, strict=True)):
+            if k not in self._uniform:
+                blocks.append(_soa_block(arg, arr, batched, n))
+            elif batched:
+                raise ValueError(f"{self.name}: input {arg.name!r} is one value for every sample")
+            else:  # read once by the kernel: one sample's elements, no copy per sample
+                blocks.append(np.ascontiguousarray(arr.reshape(-1, order="F")))
         outs = [np.empty((a.size, n)) for a in self._layout.outputs]
         in_ptrs = (ctypes.c_void_p * max(1, len(blocks)))(*[b.ctypes.data for b in blocks])
         out_ptrs = (ctypes.c_void_p * max(1, len(outs)))(*[o.ctypes.data for o in outs])
@@ -1047,7 +1071,10 @@ class CasadiEvaluator:
 
 
 def _load(
-    path: Path, functions: Mapping[str, casadi.Function], generated: Mapping[str, _Generated]
+    path: Path,
+    functions: Mapping[str, casadi.Function],
+    generated: Mapping[str, _Generated],
+    uniform: Mapping[str, frozenset[int]] | None = None,
 ) -> dict[str, NativeFunction]:
     libs = (ctypes.PyDLL(str(path)), ctypes.CDLL(str(path)))
     loaded: dict[str, NativeFunction] = {}
@@ -1059,7 +1086,7 @@ def _load(
             raise ValueError(f"{path}: no kernel for {name!r}") from err
         if found.value.decode() != gen.digest:
             raise ValueError(f"{path}: kernel for {name!r} is stale")
-        loaded[name] = NativeFunction(fn, libs, gen.symbol)
+        loaded[name] = NativeFunction(fn, libs, gen.symbol, (uniform or {}).get(name, _NONE))
     return loaded
 
 
@@ -1078,15 +1105,22 @@ def load_native_library(
 
 
 def fast_functions(
-    functions: Mapping[str, casadi.Function], cache_dir: Path | None = None, *, native: bool = True
+    functions: Mapping[str, casadi.Function],
+    cache_dir: Path | None = None,
+    *,
+    native: bool = True,
+    uniform: Mapping[str, frozenset[int]] | None = None,
 ) -> dict[str, Evaluator]:
     """Best evaluator for each function; all native ones share one cached ``.so``.
 
     Functions that cannot be lowered, or all of them when no compiler works (or ``native`` is
-    false), get a :class:`CasadiEvaluator`.
+    false), get a :class:`CasadiEvaluator`. ``uniform`` (function name -> input indices):
+    inputs that ``batch`` always gets as one value for every sample; the kernel reads them once
+    instead of from a copy per sample (what costs most when they are large and the per-sample
+    work is small), and ``batch`` refuses a batched value for them.
     """
     result: dict[str, Evaluator] = {n: CasadiEvaluator(f) for n, f in functions.items()}
-    generated = _generate_all(functions) if native else {}
+    generated = _generate_all(functions, uniform) if native else {}
     path = _build_cached(list(generated.values()), cache_dir) if generated else None
     if path is None:
         return result
@@ -1094,7 +1128,7 @@ def fast_functions(
         logger.warning("not loading %s: %s", path, untrusted_reason(path) or "digest mismatch")
         return result
     try:
-        result.update(_load(path, {n: functions[n] for n in generated}, generated))
+        result.update(_load(path, {n: functions[n] for n in generated}, generated, uniform))
     except (OSError, ValueError) as err:
         logger.warning("cannot load %s (%s); using CasADi's VM", path, err)
     return result

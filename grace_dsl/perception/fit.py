@@ -380,21 +380,20 @@ class Fitter:
         """Distance (and its gradient) of the surface at ``pts`` (in the frame of ``st.pose``):
         the first ``labelled`` points to their own part's shapes, the rest to every shape."""
         m, pfix, w0 = self.model, self._p(st.theta), np.zeros(6)
-        if with_jac:
-            d, g = m.gradient.batch(st.theta, pfix, st.q, w0, pts)
-        else:
-            d, g = m.value.batch(st.theta, pfix, st.q, w0, pts), None
-        if self.masks is None:
-            d = np.asarray(d).reshape(-1)
-            return d, None if g is None else np.asarray(g).reshape(len(pts), -1)
-        d = np.asarray(d).reshape(len(pts), -1)
+        if isinstance(m, SdfModel):
+            if with_jac:
+                d, g = m.gradient.batch(st.theta, pfix, st.q, w0, pts)
+                return np.asarray(d).reshape(-1), np.asarray(g).reshape(len(pts), -1)
+            return np.asarray(m.value.batch(st.theta, pfix, st.q, w0, pts)).reshape(-1), None
+        assert self.masks is not None
+        # every shape's distance, then only the shape each point is measured against is
+        # differentiated (its own part's nearest for a labelled point, the union's for the rest)
+        d = m.distances(st.theta, pfix, st.q, w0, pts)
         own = np.where(self.masks[:labelled], d[:labelled], np.inf)
         k = np.concatenate([own.argmin(axis=1), d[labelled:].argmin(axis=1)])
-        rows = np.arange(len(pts))
-        if g is None:
-            return d[rows, k], None
-        g = np.asarray(g).reshape(len(pts), d.shape[1], -1)
-        return d[rows, k], g[rows, k]
+        if not with_jac:
+            return d[np.arange(len(pts)), k], None
+        return m.gradients(st.theta, pfix, st.q, w0, pts, k)
 
     def run(
         self,

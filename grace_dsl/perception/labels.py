@@ -76,6 +76,8 @@ def check_labels(labels: Any, n_points: int) -> np.ndarray:
             f"labels has {len(out)} entries for {n_points} points: give one part name per point "
             "(or build both with labelled_points)"
         )
+    if isinstance(labels, np.ndarray) and labels.dtype.kind == "U":
+        return labels.reshape(-1)  # already str: no per-point check needed
     bad = [x for x in out[:n_points] if not isinstance(x, str)]
     if bad:
         raise LabelError(f"labels must be str part names, got {type(bad[0]).__name__} {bad[0]!r}")

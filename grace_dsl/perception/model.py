@@ -17,7 +17,8 @@ inputs, so Gauss-Newton gets exact derivatives instead of finite differences. In
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
@@ -105,7 +106,11 @@ class _Graph:
         for a in s["args"]:
             values[a["name"]] = args[i] if a["size"] == 1 else args[i : i + a["size"]]
             i += a["size"]
-        return primitive_sdf_casadi(s["primitive"], values, _apply(_inverse(place), y))
+        return self.leaf(s["primitive"], values, place, y)
+
+    def leaf(self, primitive: str, values: dict[str, Any], place: Any, y: Any) -> Any:
+        """A primitive's distance at ``y`` (concept frame), the primitive placed at ``place``."""
+        return primitive_sdf_casadi(primitive, values, _apply(_inverse(place), y))
 
     def outermost(self) -> list[str]:
         consumed = {op for s in self.entries.values() for op in s["operands"]}
@@ -117,26 +122,6 @@ def _min(ds: list[Any]) -> Any:
     for d in ds[1:]:
         out = ca.fmin(out, d)
     return out
-
-
-@dataclass(frozen=True)
-class PartsModel:
-    """The distance to each outermost shape apart, for a fit whose points carry part labels:
-    a point is measured against the shapes of its own part (the min over that group's columns)
-    and free space against all of them (the union). One function for every labelling, so a
-    concept compiles once whatever parts a segmenter names."""
-
-    concept: Concept
-    float_index: tuple[int, ...]
-    n_joints: int
-    shapes: tuple[str, ...]  # the outermost shapes, the columns of the outputs
-    links: tuple[str, ...]  # the link of each shape
-    value: native.Evaluator  # (theta, pfix, q, w, y) -> d (S,)
-    gradient: native.Evaluator  # (theta, pfix, q, w, y) -> (d (S,), dd/d[theta, q, w] (S, n))
-
-    @property
-    def n_vars(self) -> int:
-        return len(self.float_index) + self.n_joints + 6
 
 
 def _symbols(concept: Concept) -> tuple[Any, ...]:
@@ -176,35 +161,6 @@ def _shape_distances(
 
 
 @lru_cache(maxsize=32)
-def _build_parts(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
-    theta, pfix, q, w, y, p, local = _symbols(concept)
-    names, links, ds = _shape_distances(concept, shapes, p, q, local)
-    d = ca.vertcat(*ds)
-    x = ca.vertcat(theta, q, w)
-    name = f"fitparts_{concept.name.lower()}_{zlib.crc32('|'.join(shapes).encode()):08x}"
-    fns = {
-        f"{name}_d": ca.Function(f"{name}_d", [theta, pfix, q, w, y], [d]),
-        f"{name}_g": ca.Function(f"{name}_g", [theta, pfix, q, w, y], [d, ca.jacobian(d, x)]),
-    }
-    fast = native.fast_functions(fns)
-    return PartsModel(
-        concept,
-        float_index(concept),
-        len(concept.moving_joints),
-        tuple(names),
-        tuple(links),
-        fast[f"{name}_d"],
-        fast[f"{name}_g"],
-    )
-
-
-def parts_model(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
-    """The per-shape distances of ``concept`` over ``shapes`` (as ``sdf_model``), for the
-    part-labelled fit; built once per concept and shape set."""
-    return _build_parts(concept, tuple(shapes))
-
-
-@lru_cache(maxsize=32)
 def _build(concept: Concept, shapes: tuple[str, ...]) -> SdfModel:
     index = float_index(concept)
     theta, pfix, q, w, y, p, local = _symbols(concept)
@@ -227,3 +183,201 @@ def sdf_model(concept: Concept, shapes: tuple[str, ...]) -> SdfModel:
     ``ShapeTree(inst).shapes``); built once per concept and shape set, native code cached on
     disk by content."""
     return _build(concept, tuple(shapes))
+
+
+# -- the part-labelled fit's model: per-point kernels fed by a once-per-evaluation setup ---------
+
+
+class _Inputs:
+    """What a primitive's distance takes from the parameters and joints (its placement's
+    inverse and its arguments) does not depend on the point: each non-constant entry becomes a
+    symbol ``z[i]`` of the per-point kernels, its expression goes to ``setup``, evaluated once
+    per call instead of once per point. Constant entries (an axis-aligned box's rotation) stay
+    constants, so the kernels keep their simplifications."""
+
+    def __init__(self) -> None:
+        self.symbols: list[Any] = []
+        self.exprs: list[Any] = []
+
+    def __call__(self, e: Any) -> Any:
+        e = ca.SX(e)
+        out = ca.SX.zeros(*e.shape)
+        for i in range(e.numel()):
+            x = e[i]
+            if x.is_constant():
+                out[i] = x
+            else:
+                z = ca.SX.sym(f"z{len(self.symbols)}")
+                self.symbols.append(z)
+                self.exprs.append(x)
+                out[i] = z
+        return out
+
+
+class _SplitGraph(_Graph):
+    """``_Graph`` whose primitives read their placement and arguments from ``_Inputs``."""
+
+    def __init__(self, concept: Concept, shapes: tuple[str, ...], p: Any, q: Any, inputs: _Inputs):
+        super().__init__(concept, shapes, p, q)
+        self.inputs = inputs
+
+    def leaf(self, primitive: str, values: dict[str, Any], place: Any, y: Any) -> Any:
+        inv = _inverse(place)
+        rot, shift = self.inputs(inv[:3, :3]), self.inputs(inv[:3, 3])
+        own = {k: self.inputs(v) for k, v in values.items()}
+        return primitive_sdf_casadi(primitive, own, rot @ y + shift)
+
+
+@dataclass(frozen=True)
+class _Batch:
+    """An evaluation with the ``batch`` call of an ``Evaluator`` (the model's older API)."""
+
+    fn: Callable[..., Any]
+
+    def batch(self, *args: Any) -> Any:
+        return self.fn(*args)
+
+
+@dataclass(frozen=True)
+class PartsModel:
+    """The distance to each outermost shape apart, for a fit whose points carry part labels:
+    a point is measured against the shapes of its own part (the min over that group's columns)
+    and free space against all of them (the union). One model for every labelling, so a
+    concept compiles once whatever parts a segmenter names.
+
+    Evaluated in two steps (why: the placements of a concept's shapes, a chain of link and
+    shape transforms of the parameters, cost most of a point's distance and are the same for
+    every point): ``setup`` maps (theta, pfix, q) to the primitives' placements and arguments
+    ``z`` and their Jacobian; ``point_value`` (z, w, y) gives every shape's distance at a
+    point, and ``point_grads[k]`` shape k's distance and its gradient in z's entries of shape
+    k (``cuts[k]:cuts[k+1]``) and in w, so the fit differentiates only the shape each point is
+    measured against; the chain rule through ``setup``'s Jacobian gives the gradient in
+    (theta, q, w)."""
+
+    concept: Concept
+    float_index: tuple[int, ...]
+    n_joints: int
+    shapes: tuple[str, ...]  # the outermost shapes, the columns of the outputs
+    links: tuple[str, ...]  # the link of each shape
+    setup: native.Evaluator  # (theta, pfix, q) -> (z (m,), dz/d[theta, q] (m, nt + nq))
+    point_value: native.Evaluator  # (z, w, y) -> d (S,)
+    point_grads: tuple[native.Evaluator, ...]  # per shape: (z, w, y) -> (d, dd/d[z_k, w])
+    cuts: tuple[int, ...]  # shape k's entries of z: cuts[k]:cuts[k + 1]
+    value: _Batch = field(init=False, repr=False, compare=False)
+    gradient: _Batch = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _Batch(self.distances))
+        object.__setattr__(self, "gradient", _Batch(self.all_gradients))
+
+    @property
+    def n_vars(self) -> int:
+        return len(self.float_index) + self.n_joints + 6
+
+    def inputs(
+        self, theta: np.ndarray, pfix: np.ndarray, q: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``z`` and its Jacobian in (theta, q) at the given parameters and joints."""
+        z, jz = self.setup(theta, pfix, q)
+        flat = np.asarray(z, float).reshape(-1)
+        return flat, np.asarray(jz, float).reshape(len(flat), -1)
+
+    def distances(
+        self, theta: np.ndarray, pfix: np.ndarray, q: np.ndarray, w: np.ndarray, y: np.ndarray
+    ) -> np.ndarray:
+        """(N, S): every shape's distance at each point ``y`` (N, 3)."""
+        z = self.inputs(theta, pfix, q)[0]
+        return np.asarray(self.point_value.batch(z, w, y)).reshape(len(y), len(self.shapes))
+
+    def gradients(
+        self,
+        theta: np.ndarray,
+        pfix: np.ndarray,
+        q: np.ndarray,
+        w: np.ndarray,
+        y: np.ndarray,
+        k: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Point i's distance to shape ``k[i]`` (N,) and its gradient in (theta, q, w) (N, n)."""
+        z, jz = self.inputs(theta, pfix, q)
+        n = len(y)
+        d, g = np.empty(n), np.empty((n, self.n_vars))
+        nz = jz.shape[1]
+        for j in np.unique(k):
+            rows = np.flatnonzero(k == j)
+            a, b = self.cuts[j], self.cuts[j + 1]
+            dj, gj = self.point_grads[j].batch(z, w, y[rows])
+            gj = np.asarray(gj).reshape(len(rows), -1)
+            d[rows] = np.asarray(dj).reshape(-1)
+            g[rows, :nz] = gj[:, : b - a] @ jz[a:b]
+            g[rows, nz:] = gj[:, b - a :]
+        return d, g
+
+    def all_gradients(
+        self, theta: np.ndarray, pfix: np.ndarray, q: np.ndarray, w: np.ndarray, y: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, S) distances and (N, S, n) gradients of every shape at every point."""
+        n, s = len(y), len(self.shapes)
+        d, g = np.empty((n, s)), np.empty((n, s, self.n_vars))
+        for j in range(s):
+            d[:, j], g[:, j] = self.gradients(theta, pfix, q, w, y, np.full(n, j))
+        return d, g
+
+
+@lru_cache(maxsize=32)
+def _build_parts(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
+    theta, pfix, q, w, y, p, local = _symbols(concept)
+    inputs = _Inputs()
+    cuts = [0]
+    own = primitive_own_shape(concept)
+    if own is not None and not concept.entry["shapes"]:
+        values = {
+            s.name: inputs(p[s.offset] if s.size == 1 else p[s.offset : s.offset + s.size])
+            for s in concept.params
+        }
+        names = [own["name"]]
+        links = [concept.links[0] if concept.links else "base"]
+        ds = [primitive_sdf_casadi(concept.name, values, local)]
+        cuts.append(len(inputs.symbols))
+    else:
+        g = _SplitGraph(concept, shapes, p, q, inputs)
+        names = g.outermost()
+        links = [g.entries[n]["link"] for n in names]
+        ds = []
+        for n in names:
+            ds.append(g.sdf(n, g.motion(g.entries[n]["link"]) @ g.shape(n)[0], local))
+            cuts.append(len(inputs.symbols))
+    z = ca.vertcat(*inputs.symbols) if inputs.symbols else ca.SX.sym("z", 1)
+    zexpr = ca.vertcat(*inputs.exprs) if inputs.exprs else ca.SX.zeros(1)
+    name = f"fitsplit_{concept.name.lower()}_{zlib.crc32('|'.join(shapes).encode()):08x}"
+    fns = {
+        f"{name}_s": ca.Function(
+            f"{name}_s", [theta, pfix, q], [zexpr, ca.jacobian(zexpr, ca.vertcat(theta, q))]
+        ),
+        f"{name}_d": ca.Function(f"{name}_d", [z, w, y], [ca.vertcat(*ds)]),
+    }
+    for k, d in enumerate(ds):
+        mine = ca.vertcat(z[cuts[k] : cuts[k + 1]], w)
+        fns[f"{name}_g{k}"] = ca.Function(f"{name}_g{k}", [z, w, y], [d, ca.jacobian(d, mine)])
+    # z and w are the same for every point: the kernels read them once per batch
+    fast = native.fast_functions(
+        fns, uniform={n: frozenset({0, 1}) for n in fns if n != f"{name}_s"}
+    )
+    return PartsModel(
+        concept,
+        float_index(concept),
+        len(concept.moving_joints),
+        tuple(names),
+        tuple(links),
+        fast[f"{name}_s"],
+        fast[f"{name}_d"],
+        tuple(fast[f"{name}_g{k}"] for k in range(len(ds))),
+        tuple(cuts),
+    )
+
+
+def parts_model(concept: Concept, shapes: tuple[str, ...]) -> PartsModel:
+    """The per-shape distances of ``concept`` over ``shapes`` (as ``sdf_model``), for the
+    part-labelled fit; built once per concept and shape set, native code cached on disk by
+    content."""
+    return _build_parts(concept, tuple(shapes))
