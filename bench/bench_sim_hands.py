@@ -23,6 +23,12 @@ simulation), how many succeeded, per hand (with the Panda's own run from
     python bench/bench_sim_hands.py --smoke           # 1 category x 1 episode (the tests)
     python bench/bench_sim_hands.py --setups topdown --categories Drawer --episodes 5
     python bench/bench_sim_hands.py --setups pusher --tasks open --rank-only   # rank, no physics
+    python bench/bench_sim_hands.py --episodes 100 --workers 2 --log hands.jsonl  # resumable
+
+With ``--log``, every record is appended to that JSON-lines file as its episode ends; a rerun
+takes the episodes already there from it and runs only the missing ones (a record is a pure
+function of its config and seed), and the tables cover every requested episode. The ``--out``
+JSON then holds the tables and the log's name, not the records again.
 
 ``--rank-only`` draws the same episodes and runs ``inst.rank`` on each, without MuJoCo: which
 option the hand would execute (grasp and free parameters) or why none is feasible. It is cheap
@@ -79,11 +85,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--panda", type=Path, default=PANDA_RUN, help="the Panda's bench_sim JSON")
     ap.add_argument("--merge", nargs="+", type=Path, metavar="JSON", help="combine runs")
     ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
+    ap.add_argument(
+        "--log", type=Path, default=None, help="append each record here (JSON lines); resumes"
+    )
     args = ap.parse_args(argv)
     command = " ".join(["python bench/bench_sim_hands.py", *(argv or sys.argv[1:])])
     if args.merge:
         runs = [json.loads(p.read_text()) for p in args.merge]
-        records = [record_from_json(r) for run in runs for r in run["records"]]
+        records = [r for path, run in zip(args.merge, runs) for r in run_records(path, run)]
         episodes = max(run["episodes"] for run in runs)
         command += "  # parts: " + " | ".join(run["command"] for run in runs)
     else:
@@ -95,14 +104,65 @@ def main(argv: list[str] | None = None) -> int:
             categories, episodes = (categories[0],), 1
         if args.rank_only:
             return rank_only(args, command, categories, episodes)
-        records = []
-        for name in args.setups:  # a category at a time, the JSON rewritten after each
-            for category in categories:
-                jobs = plan_episodes((category,), episodes, args.seed, SETUPS[name], args.tasks)
-                records += run_episodes(jobs, workers=args.workers)
-                write(args, command, episodes, records, quiet=True)
+        jobs = plan_all(args.setups, categories, episodes, args.seed, args.tasks)
+        records = run_all(jobs, args.log, args.workers)
     write(args, command, episodes, records)
     return 0
+
+
+Key = tuple[EpisodeConfig, int]
+
+
+def plan_all(
+    setups: list[str], categories: tuple[str, ...], episodes: int, seed: int, tasks: list[str]
+) -> list[Key]:
+    """Every (config, seed) of the run, episode index by index over the set-ups, categories and
+    tasks: a run cut short has covered every cell evenly (its log resumes it)."""
+    plans = [plan_episodes(categories, episodes, seed, SETUPS[s], tasks) for s in setups]  # type: ignore[arg-type]
+    return [
+        plan[k] for i in range(episodes) for plan in plans for k in range(i, len(plan), episodes)
+    ]
+
+
+def run_all(jobs: list[Key], log: Path | None, workers: int) -> list[EpisodeRecord]:
+    """One record per job, in order: those already in ``log`` read from it, the others run on
+    ``workers`` processes (a progress bar) and appended to ``log`` as each ends."""
+    done = {(r.config, r.seed): r for r in read_log(log)} if log is not None else {}
+    todo = [job for job in dict.fromkeys(jobs) if job not in done]
+    if log is not None:
+        log.parent.mkdir(parents=True, exist_ok=True)
+        print(f"{len(jobs) - len(todo)} of {len(jobs)} episodes in {log}; running {len(todo)}")
+
+    def keep(_: int, record: EpisodeRecord) -> None:
+        done[(record.config, record.seed)] = record
+        if log is not None:
+            with log.open("a") as f:
+                f.write(json.dumps(record.to_json()) + "\n")
+
+    if todo:
+        run_episodes(todo, workers=workers, on_record=keep)
+    return [done[job] for job in jobs]
+
+
+def read_log(path: Path) -> list[EpisodeRecord]:
+    """The records of a ``--log`` file ([] if there is none yet); a line cut short by an
+    interrupted write is skipped (its episode runs again)."""
+    if not path.is_file():
+        return []
+    records = []
+    for line in path.read_text().splitlines():
+        try:
+            records.append(record_from_json(json.loads(line)))
+        except json.JSONDecodeError:
+            continue
+    return records
+
+
+def run_records(path: Path, run: dict[str, Any]) -> list[EpisodeRecord]:
+    """A result JSON's records: its own, or its ``--log``'s (beside it)."""
+    if "log" in run:
+        return read_log(path.parent / run["log"])
+    return [record_from_json(r) for r in run["records"]]
 
 
 def rank_only(
@@ -161,7 +221,10 @@ def write(
     out = args.out or RESULTS
     out.parent.mkdir(parents=True, exist_ok=True)
     payload = {"command": command, "episodes": episodes, "seed": args.seed, **result}
-    payload["records"] = [r.to_json() for r in records]
+    if args.log is not None and not args.merge:
+        payload["log"] = args.log.name  # the records are there, once
+    else:
+        payload["records"] = [r.to_json() for r in records]
     out.write_text(json.dumps(payload, indent=1) + "\n")
     if not quiet:
         print(f"wrote {out}")

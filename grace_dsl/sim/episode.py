@@ -180,6 +180,9 @@ class Outcome:
     unstable: bool = False
     detail: str = ""
     world: HandWorld | None = field(default=None, compare=False, repr=False)
+    #: a pinch's fingers had closed on nothing when the follow ended: the part slipped out of
+    #: them (the hand itself stays on the path, so the drift check does not see it)
+    emptied: bool = False
 
 
 def execute(
@@ -261,6 +264,7 @@ def execute(
         done_at = follower.goal
     slipped = _follow(world, task, follower, lo, hi, budget - (world.time - began), done_at,
                       offset, stalled_from)  # fmt: skip
+    emptied = pinch and world.opening() < EMPTY
     if world.unstable():
         return _finish(world, task, arrived, slipped, "the simulation became unstable", True)
     # a part sent to an explicit goal is held there until it stops (let go where the hand is, it
@@ -277,7 +281,7 @@ def execute(
     elif task.sign < 0 and not slipped:
         hold = follower.pose_at(lo)
         hold[:3, 3] = follower.pose_at(follower.goal)[:3, 3]
-    return _finish(world, task, arrived, slipped, "", hold=hold)
+    return _finish(world, task, arrived, slipped, "", hold=hold, emptied=emptied)
 
 
 def _still(world: HandWorld, joint: str, hold: np.ndarray) -> None:
@@ -409,6 +413,7 @@ def _finish(
     detail: str,
     unstable: bool = False,
     hold: np.ndarray | None = None,
+    emptied: bool = False,
 ) -> Outcome:
     """Let go (at ``hold``, else where the hand is), back off and settle; the joint value
     after that is the episode's result."""
@@ -430,6 +435,7 @@ def _finish(
         unstable or world.unstable(),
         detail,
         world,
+        emptied,
     )
 
 
@@ -458,6 +464,8 @@ def _failure(config: EpisodeConfig, draw: Draw, out: Outcome) -> tuple[str, str]
         return "wrong_direction", f"the joint moved {moved:+.3f} against the task"
     if out.slipped:
         return "slip", out.detail or "the hand came off the part while following the path"
+    if out.emptied:
+        return "slip", f"the part slipped out of the fingers after moving {moved:+.3f}"
     return "timeout", f"the joint moved {moved:+.3f} and stopped short of the goal"
 
 

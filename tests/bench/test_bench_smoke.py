@@ -68,6 +68,36 @@ def test_perception_labels_smoke(tmp_path: Path) -> None:
     assert result["modes"] == ["fit"] and "StraightHandle" in result["concepts"]
 
 
+@pytest.mark.bench
+@pytest.mark.slow
+def test_hands_rank_only_smoke(tmp_path: Path) -> None:
+    """bench_sim_hands' ``--rank-only``: each draw ranked for its hand, no physics; every row
+    names an option or says why there is none."""
+    out = tmp_path / "rank.json"
+    run = _smoke("bench_sim_hands.py", out, tmp_path, "--rank-only", "--setups", "pusher", "panda")
+    rows = json.loads(out.read_text())["ranked"]
+    assert {r["setup"] for r in rows} == {"pusher", "panda"}
+    assert len(rows) == 4  # 1 category x 2 tasks x 2 set-ups
+    assert all(bool(r["option"]) != bool(r["why"]) for r in rows)
+    assert "pusher" in run.stdout
+
+
+@pytest.mark.bench
+@pytest.mark.slow
+def test_hands_log_resumes(tmp_path: Path) -> None:
+    """bench_sim_hands' ``--log``: a rerun takes every episode from the log and runs none, and
+    its tables are the first run's."""
+    log, out = tmp_path / "hands.jsonl", tmp_path / "result.json"
+    _smoke("bench_sim_hands.py", out, tmp_path, "--setups", "pusher", "--log", str(log))
+    lines = log.read_text().splitlines()
+    first = json.loads(out.read_text())
+    assert len(lines) == 2 and "records" not in first and first["log"] == log.name
+    run = _smoke("bench_sim_hands.py", out, tmp_path, "--setups", "pusher", "--log", str(log))
+    assert log.read_text().splitlines() == lines
+    assert "2 of 2 episodes" in run.stdout and "running 0" in run.stdout
+    assert json.loads(out.read_text())["summary"] == first["summary"]
+
+
 def _smoke(script: str, out: Path, cwd: Path, *extra: str) -> subprocess.CompletedProcess[str]:
     """``bench/<script> --smoke [extra] --out <out>`` with this checkout's grace_dsl (and the
     test cache), asserting it exits 0."""

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from grace_dsl.runtime.errors import ParameterError
-from grace_dsl.sim.episode import run_episode
+from grace_dsl.sim.episode import Outcome, _failure, run_episode
+from grace_dsl.sim.protocol import Draw
 from grace_dsl.sim.records import FAILURE_REASONS, EpisodeConfig
 
 
@@ -137,3 +140,23 @@ def test_only_the_driven_part_is_balanced(lib) -> None:  # type: ignore[no-untyp
     assert lid == pytest.approx(0.1) and seat >= lid
     every = World.build(inst, Gripper.load("panda"), far)
     assert all(every.model.body_gravcomp[2:] == 1.0)  # all but the world and the welded root
+
+
+def test_a_part_gone_from_the_fingers_is_a_slip_not_a_timeout() -> None:
+    """The follower re-anchors on the measured joint, so a hand whose pinch lost the part stays
+    on the path and the drift check never fires: the fingers closed on nothing say it."""
+    config, draw = EpisodeConfig("Refrigerator", "open"), Draw({}, 1.0, 0.0, True)
+    held = Outcome(1.0, 21.0, arrived=True, slipped=False)
+    assert _failure(config, draw, held)[0] == "timeout"
+    reason, detail = _failure(config, draw, replace(held, emptied=True))
+    assert reason == "slip" and "+1.000" in detail
+
+
+@pytest.mark.slow
+def test_a_heavy_door_that_left_the_fingers_slips() -> None:
+    """A 2x refrigerator door (eight times the mass) pulled by its handle: the bar leaves the
+    pinch at 1.0 rad of 2.1 and the door stops; that is a slip."""
+    config = EpisodeConfig("Refrigerator", "open", scale=(0.3, 2.0), ranges="valid")
+    record = run_episode(config, 1072501174)
+    assert not record.strict and record.lenient
+    assert record.reason == "slip", record.detail
