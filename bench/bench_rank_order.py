@@ -18,6 +18,7 @@ import json
 import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,22 +30,46 @@ RESULTS = ROOT / "bench" / "results" / "rank_order.json"
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--categories", nargs="+", default=None)
+    return run(argv, __doc__, "bench_rank_order.py", RESULTS, CATEGORIES, listed_order_choices)
+
+
+def listed_order_choices(concept: str, options: list[Any]) -> tuple[str | None, str | None]:
+    """The first feasible option under the key before ``Option.listed``, and under ``rank``'s."""
+    from grace_dsl.runtime.manipulation import MODE_ORDER
+
+    before = sorted(options, key=lambda o: (not o.feasible, MODE_ORDER.get(o.mode, 3), o.rotation))
+    old = next((o.grasp for o in before if o.feasible), None)
+    return old, next((o.grasp for o in options if o.feasible), None)
+
+
+Choices = Callable[[str, list[Any]], tuple[Any, Any]]
+
+
+def run(
+    argv: list[str] | None,
+    doc: str | None,
+    script: str,
+    results: Path,
+    categories: tuple[str, ...] | list[str],
+    choices: Choices,
+) -> int:
+    """The command line shared by the benches that compare two choices of option per draw."""
+    ap = argparse.ArgumentParser(description=(doc or "").split("\n")[0])
+    ap.add_argument("--categories", nargs="+", default=list(categories))
     ap.add_argument("--episodes", type=int, default=25, help="episodes per category and task")
     ap.add_argument("--hand", default="panda")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--smoke", action="store_true", help="1 category, 1 episode per task")
-    ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {RESULTS})")
+    ap.add_argument("--out", type=Path, default=None, help=f"JSON result (default {results})")
     args = ap.parse_args(argv)
-    categories = tuple(args.categories or CATEGORIES)
+    chosen = tuple(args.categories)
     episodes = args.episodes
     if args.smoke:
-        categories, episodes = (categories[0],), 1
-    rows = compare(plan(categories, episodes, args.hand, args.seed), args.hand)
-    out = args.out or RESULTS
+        chosen, episodes = (chosen[0],), 1
+    rows = compare(plan(chosen, episodes, args.hand, args.seed), args.hand, choices)
+    out = args.out or results
     out.parent.mkdir(parents=True, exist_ok=True)
-    header = {"command": " ".join(["python bench/bench_rank_order.py", *sys.argv[1:]])}
+    header = {"command": " ".join([f"python bench/{script}", *(argv or sys.argv[1:])])}
     out.write_text(json.dumps({**header, "seed": args.seed, "rows": rows}, indent=1) + "\n")
     for r in rows:
         moves = ", ".join(f"{k} {n}" for k, n in r["moves"].items())
@@ -52,13 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def compare(jobs: list[tuple[Any, int]], hand: str) -> list[dict[str, Any]]:
-    """Per (concept, task): episodes, how many change option, and ``old -> new`` counts."""
+def compare(jobs: list[tuple[Any, int]], hand: str, choices: Choices) -> list[dict[str, Any]]:
+    """Per (concept, task): episodes, the options chosen, how many change and ``old -> new``."""
     from rich.console import Console
     from rich.progress import track
 
     from grace_dsl import Gripper
-    from grace_dsl.runtime.manipulation import MODE_ORDER
     from grace_dsl.sim.episode import Start, start_episode
 
     gripper = Gripper.load(hand)
@@ -73,17 +97,15 @@ def compare(jobs: list[tuple[Any, int]], hand: str) -> list[dict[str, Any]]:
         if not isinstance(start, Start):  # an invalid draw: no option either way
             continue
         options = start.inst.rank(start.task.action, gripper=gripper)
-        before = sorted(
-            options, key=lambda o: (not o.feasible, MODE_ORDER.get(o.mode, 3), o.rotation)
-        )
-        new = next((o.grasp for o in options if o.feasible), None)
-        old = next((o.grasp for o in before if o.feasible), None)
+        old, new = choices(config.concept, options)
+        row.setdefault("options", Counter())[str(new)] += 1
         if new != old:
             row["changed"] += 1
             row.setdefault("moves", Counter())[f"{old} -> {new}"] += 1
             row.setdefault("seeds", []).append(seed)
     for row in rows.values():
         row["moves"] = dict(row.get("moves", {}))
+        row["options"] = dict(row.get("options", {}))
     return list(rows.values())
 
 
