@@ -731,31 +731,9 @@ def labelled_fit(
             _stage(concept, points, labels, free, outline, cands[0][1], base, states[0], 0.3)
         )
     best = min(tried, key=_label_score)
-    best = _stage(
-        concept,
-        points,
-        labels,
-        free,
-        outline,
-        best.pose,
-        best.params,
-        best.joints,
-        LABEL_CAUCHY,
-        15,
-    )
+    best = _resume(concept, points, labels, free, outline, best, LABEL_CAUCHY, 15)
     best = _restarted(concept, points, labels, free, outline, best)
-    best = _stage(
-        concept,
-        points,
-        labels,
-        free,
-        outline,
-        best.pose,
-        best.params,
-        best.joints,
-        WIDE_CAUCHY,
-        LABEL_SCREEN,
-    )
+    best = _resume(concept, points, labels, free, outline, best, WIDE_CAUCHY, LABEL_SCREEN)
     # the last stage keeps the requirements (a real instance meets them), from the nearest
     # start that meets them: the earlier stages may cross them on the way (a height and a
     # handle's place move together), which a strict fit's refused steps could not
@@ -794,18 +772,7 @@ def _restarted(
     won = min(tried, key=_label_score)
     if won is best:
         return best
-    return _stage(
-        concept,
-        points,
-        labels,
-        free,
-        outline,
-        won.pose,
-        won.params,
-        won.joints,
-        LABEL_CAUCHY,
-        15 - LABEL_SCREEN,
-    )
+    return _resume(concept, points, labels, free, outline, won, LABEL_CAUCHY, 15 - LABEL_SCREEN)
 
 
 def _thinned(pts: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -877,6 +844,22 @@ def _stage(
         fitter = Fitter(concept, concept.instantiate().params, joints, scale, labels, strict)
     seen = outline if scale <= OUTLINE_SCALE else None
     return fitter.run(points, pose, np.zeros(3), iterations, free, seen)
+
+
+def _resume(
+    concept: Concept,
+    points: np.ndarray,
+    labels: np.ndarray,
+    free: np.ndarray,
+    outline: Outlines,
+    fit: FitResult,
+    scale: float,
+    iterations: int,
+) -> FitResult:
+    """``_stage`` started where ``fit`` ended: its pose, parameters and joints."""
+    return _stage(
+        concept, points, labels, free, outline, fit.pose, fit.params, fit.joints, scale, iterations
+    )
 
 
 def _label_score(r: FitResult) -> float:

@@ -114,7 +114,6 @@ def test_the_pusher_lifts_an_ajar_laptop_lid_from_below_in_mujoco() -> None:
     """A real episode of a conditional family: the hand that cannot close opens a laptop whose
     lid is ajar by pushing it up from below (`lift_under`, whose `when` reads the hinge); on a
     shut lid rank offers no option (the lip is a fingernail's grip)."""
-    pytest.importorskip("mujoco")
     import math
     import time
 
